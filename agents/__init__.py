@@ -1,0 +1,1 @@
+"""Driving policies for the crossing environment and the evaluation script."""

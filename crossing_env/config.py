@@ -1,0 +1,343 @@
+"""Frozen, documented configuration objects for the crossing world and the environment.
+
+Every physical quantity is in SI units (metres, seconds, m/s, m/s²). Variants are made with
+`dataclasses.replace`; scenario files (see `scenarios/`) are parsed into `ScenarioConfig`.
+
+Coordinate frame: the road runs along +x from x = 0 to x = `RoadConfig.length`; lanes are stacked
+along +y starting at y = 0 (the "south" kerb). Forward lanes (traffic towards +x, the ego's direction)
+come first, backward lanes (towards −x) above them. Sidewalks lie beyond both kerbs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+CrossingKind = Literal["zebra", "signalised", "none"]
+PhaseDistribution = Literal["classical", "uniform", "normal"]
+
+
+@dataclass(frozen=True)
+class RoadConfig:
+    """Straight urban road with sidewalks on both sides."""
+
+    num_lanes: int = 2
+    """Number of traffic lanes, 1–4."""
+    two_way: bool = True
+    """If true, the upper `num_lanes // 2` lanes carry traffic towards −x; otherwise all lanes go +x."""
+    lane_width: float = 3.5
+    """Lane width in metres."""
+    length: float = 240.0
+    """Road length in metres; the episode terminates when the ego passes its end."""
+    speed_limit: float = 13.9
+    """Speed limit in m/s (13.9 m/s = 50 km/h)."""
+    sidewalk_width: float = 3.0
+    """Width of each sidewalk in metres."""
+
+    @property
+    def num_forward_lanes(self) -> int:
+        """Lanes carrying traffic towards +x (the ego's direction)."""
+        return self.num_lanes - self.num_lanes // 2 if self.two_way else self.num_lanes
+
+    @property
+    def road_width(self) -> float:
+        """Kerb-to-kerb width in metres."""
+        return self.num_lanes * self.lane_width
+
+
+@dataclass(frozen=True)
+class SignalConfig:
+    """Fixed-time pedestrian signal at a signalised crossing."""
+
+    pedestrian_green: float = 12.0
+    """Duration of the pedestrian green (walk) phase in seconds; cars have red meanwhile."""
+    pedestrian_red: float = 25.0
+    """Duration of the pedestrian red phase in seconds; cars have green meanwhile."""
+    offset: float = 0.0
+    """Time into the cycle at t = 0, in seconds (lets scenarios start mid-cycle)."""
+
+
+@dataclass(frozen=True)
+class CrosswalkConfig:
+    """The marked crossing placed on the road."""
+
+    kind: CrossingKind = "zebra"
+    """'zebra' (pedestrians have priority), 'signalised' (follow the signal) or 'none' (unmarked)."""
+    position: float = 120.0
+    """x coordinate of the crossing's centre line in metres."""
+    width: float = 4.0
+    """Width of the crossing along x in metres."""
+    stop_line_offset: float = 3.0
+    """Distance from the crossing edge to the stop line in metres."""
+    signal: SignalConfig = field(default_factory=SignalConfig)
+    """Signal timing; used only when `kind == 'signalised'`."""
+
+
+@dataclass(frozen=True)
+class IDMConfig:
+    """Intelligent Driver Model parameters (Treiber et al. 2000) for background cars."""
+
+    max_acceleration: float = 1.5
+    """Maximum acceleration a in m/s²."""
+    comfortable_deceleration: float = 2.0
+    """Comfortable deceleration b in m/s²."""
+    max_deceleration: float = 8.0
+    """Physical braking limit in m/s²; IDM's output is clipped to it."""
+    time_headway: float = 1.5
+    """Desired time headway T in seconds."""
+    min_gap: float = 2.0
+    """Jam distance s0 in metres."""
+    delta: float = 4.0
+    """Acceleration exponent."""
+
+
+@dataclass(frozen=True)
+class VehicleSpawn:
+    """One background vehicle placed at the start of an episode."""
+
+    lane: int
+    """Lane index (0 = southmost forward lane)."""
+    x: float
+    """Longitudinal position of the vehicle centre in metres."""
+    speed: float
+    """Initial speed in m/s."""
+    desired_speed: float | None = None
+    """IDM desired speed in m/s; None means the road's speed limit."""
+    yields: bool | None = None
+    """Whether the driver yields to pedestrians at the crossing; None draws from `yield_probability`."""
+    parked: bool = False
+    """A parked vehicle never moves (an occluder at the kerb)."""
+
+
+@dataclass(frozen=True)
+class TrafficConfig:
+    """Background traffic: explicit spawns plus random arrivals at the road ends."""
+
+    spawns: tuple[VehicleSpawn, ...] = ()
+    """Vehicles present at t = 0."""
+    flow_per_lane: float = 300.0
+    """Arrival rate per moving lane in vehicles per hour (Poisson); 0 disables arrivals."""
+    desired_speed_std: float = 1.0
+    """Standard deviation of drivers' desired speed around the speed limit, m/s."""
+    yield_probability: float = 0.5
+    """Probability that a background driver yields to pedestrians at a zebra (literature: 16–75%)."""
+    max_vehicles: int = 16
+    """Capacity of the vehicle pool, ego excluded."""
+    idm: IDMConfig = field(default_factory=IDMConfig)
+    """Car-following parameters."""
+    length: float = 4.5
+    """Vehicle length in metres."""
+    width: float = 1.8
+    """Vehicle width in metres."""
+
+
+@dataclass(frozen=True)
+class EgoConfig:
+    """The controlled car."""
+
+    lane: int = 0
+    """Lane index of the ego (a forward lane)."""
+    x: float = 30.0
+    """Initial position of the ego centre in metres."""
+    speed: float = 11.0
+    """Initial speed in m/s."""
+    max_acceleration: float = 3.0
+    """Upper bound of the action in m/s²."""
+    max_deceleration: float = 8.0
+    """Magnitude of the lower bound of the action in m/s² (emergency braking on dry asphalt)."""
+    max_speed: float = 20.0
+    """Speed cap in m/s."""
+
+
+@dataclass(frozen=True)
+class PedestrianSpawn:
+    """One explicitly placed pedestrian."""
+
+    x: float
+    """Start x in metres."""
+    side: Literal["south", "north"] = "south"
+    """Sidewalk the pedestrian starts on."""
+    time: float = 0.0
+    """Spawn time in seconds."""
+    crosses: bool = True
+    """Whether the pedestrian intends to cross."""
+    crossing_x: float | None = None
+    """Where the pedestrian wants to cross; None means the crossing (or the start x if there is none)."""
+    desired_speed: float | None = None
+    """Desired walking speed in m/s; None draws from the population distribution."""
+    group: int = -1
+    """Group id (members walk and decide together); −1 for none."""
+    phase: float | None = None
+    """Rationality phase θ in radians (π/2 = classical); None draws from the population distribution."""
+    distracted: bool | None = None
+    """Force distraction on or off; None draws from `BehaviourConfig.distraction_rate`."""
+    runs: bool | None = None
+    """Force a run across the road on or off (children running out); None draws from `running_rate`."""
+    radius: float | None = None
+    """Body radius in metres (children ≈ 0.2); None uses the population radius."""
+    critical_gap: float | None = None
+    """Critical gap in seconds; None draws from the population distribution (0 = does not look)."""
+
+
+@dataclass(frozen=True)
+class BehaviourConfig:
+    """Bounded-rational crossing behaviour: decision model and irrational acts (rates per pedestrian)."""
+
+    decision_model: Literal["gap", "qlb"] = "gap"
+    """'gap': classical gap acceptance; 'qlb': gap acceptance bent by quantum-like interference."""
+    phase_distribution: PhaseDistribution = "normal"
+    """How each pedestrian's rationality phase θ is drawn ('classical' gives θ = π/2 for everyone)."""
+    phase_mean: float = 1.5707963267948966
+    """Mean of θ in radians for 'normal'; π/2 gives cos θ = 0, the classical pedestrian."""
+    phase_std: float = 0.4
+    """Standard deviation of θ for 'normal'; half-width for 'uniform'."""
+    critical_gap_mean: float = 5.5
+    """Mean critical gap in seconds (calibration: lognormal, mean 5.5 s, SD 1.2 s, floor 3 s)."""
+    critical_gap_std: float = 1.2
+    """Standard deviation of the critical gap in seconds."""
+    critical_gap_floor: float = 3.0
+    """Hard floor of the critical gap in seconds."""
+    distraction_rate: float = 0.05
+    """Fraction of pedestrians on the phone: slower, longer reaction, shorter gap check."""
+    running_rate: float = 0.03
+    """Probability per crossing of a sudden run (speed × 2)."""
+    hesitation_rate: float = 0.03
+    """Probability per crossing of stopping mid-crossing for a moment."""
+    turn_back_rate: float = 0.01
+    """Probability per crossing of turning back to the start kerb."""
+    jaywalk_rate: float = 0.05
+    """Fraction of crossing pedestrians who cross away from the zebra."""
+    red_light_rate: float = 0.08
+    """Probability that a pedestrian facing a red signal crosses anyway when the gap allows."""
+    update_force_intensity: bool = False
+    """Apply the QLB-updated social force intensities (seed Case 2) for pedestrians who see others misbehave."""
+
+
+@dataclass(frozen=True)
+class SocialForceConfig:
+    """Helbing & Molnár (1995) social force model parameters."""
+
+    relaxation_time: float = 0.5
+    """Time τ in seconds over which a pedestrian adapts to its desired velocity."""
+    ped_intensity: float = 0.42
+    """Intensity of pedestrian–pedestrian repulsion (seed paper calibration)."""
+    vehicle_intensity: float = 0.71
+    """Intensity of vehicle–pedestrian repulsion (seed paper calibration)."""
+    base_strength: float = 25.0
+    """Strength at contact for intensity 1, m/s²: force = intensity × base × exp((R − d)/B) (Helbing 2000: 2000 N / 80 kg)."""
+    ped_range: float = 0.3
+    """Range B of pedestrian repulsion in metres."""
+    vehicle_range: float = 0.5
+    """Range B of vehicle repulsion in metres."""
+    kerb_strength: float = 5.0
+    """Repulsion of non-crossing pedestrians from the kerb edge, m/s² at the edge."""
+    kerb_range: float = 0.2
+    """Range of the kerb repulsion in metres."""
+    anisotropy: float = 0.5
+    """Weight λ of interactions behind the pedestrian (1 = isotropic)."""
+    max_speed_factor: float = 1.3
+    """Speed cap as a multiple of the desired speed."""
+
+
+@dataclass(frozen=True)
+class PedestrianConfig:
+    """Pedestrian population: spawns, speeds, body size and behaviour."""
+
+    spawns: tuple[PedestrianSpawn, ...] = ()
+    """Explicitly placed pedestrians."""
+    spawn_rate: float = 6.0
+    """Random arrivals per minute (both sidewalks together); 0 disables them."""
+    cross_fraction: float = 0.7
+    """Fraction of random arrivals who intend to cross (the rest walk along the sidewalk)."""
+    group_probability: float = 0.1
+    """Probability that a random arrival brings a companion (a group of two)."""
+    spawn_extent: float = 30.0
+    """Random arrivals start within this distance (m) of the crossing along the sidewalk."""
+    desired_speed_mean: float = 1.35
+    """Mean desired walking speed in m/s (calibration: N(1.35, 0.2²) truncated to [0.9, 1.9])."""
+    desired_speed_std: float = 0.2
+    """Standard deviation of the desired speed in m/s."""
+    desired_speed_min: float = 0.9
+    """Lower truncation of the desired speed in m/s."""
+    desired_speed_max: float = 1.9
+    """Upper truncation of the desired speed in m/s."""
+    radius: float = 0.28
+    """Body radius in metres."""
+    max_pedestrians: int = 32
+    """Capacity of the pedestrian pool."""
+    behaviour: BehaviourConfig = field(default_factory=BehaviourConfig)
+    """Crossing decisions and irrational acts."""
+    social_force: SocialForceConfig = field(default_factory=SocialForceConfig)
+    """Walking dynamics."""
+
+
+@dataclass(frozen=True)
+class ScenarioConfig:
+    """Everything that describes a situation, independent of the seed."""
+
+    name: str = "default"
+    """Short identifier."""
+    description: str = "Two-lane two-way road with a zebra crossing and moderate traffic."
+    """One-line description shown by `crossing_env.scenarios()`."""
+    road: RoadConfig = field(default_factory=RoadConfig)
+    """Road geometry."""
+    crossing: CrosswalkConfig = field(default_factory=CrosswalkConfig)
+    """Crossing geometry and control."""
+    ego: EgoConfig = field(default_factory=EgoConfig)
+    """The controlled car."""
+    traffic: TrafficConfig = field(default_factory=TrafficConfig)
+    """Background vehicles."""
+    pedestrians: PedestrianConfig = field(default_factory=PedestrianConfig)
+    """Pedestrians."""
+    duration: float = 40.0
+    """Episode time limit in seconds."""
+    night: bool = False
+    """Night-time: pedestrians are less visible (observation noise) and walk more slowly."""
+
+
+@dataclass(frozen=True)
+class RewardConfig:
+    """Weights of the named reward terms reported in `info['rewards']`."""
+
+    progress: float = 0.05
+    """Reward per metre travelled."""
+    collision: float = -100.0
+    """Reward on any ego collision (terminates the episode)."""
+    hard_braking: float = -0.5
+    """Reward per step with deceleration beyond `hard_braking_threshold`."""
+    hard_braking_threshold: float = 3.0
+    """Deceleration in m/s² counted as hard braking."""
+    failing_to_yield: float = -2.0
+    """Reward per step in which the ego occupies the crossing while a pedestrian is on it in its half."""
+
+
+@dataclass(frozen=True)
+class ObservationConfig:
+    """Size and content of the fixed-size observation."""
+
+    max_pedestrians: int = 16
+    """Number of pedestrian slots K (padded, sorted by relevance)."""
+    max_vehicles: int = 8
+    """Number of vehicle slots M (padded, sorted by distance)."""
+    perception_range: float = 80.0
+    """Objects farther than this from the ego are not observed, metres."""
+    history_length: int = 8
+    """Number of 0.4 s history samples per pedestrian slot (trajectory predictors need 8)."""
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Environment-level settings (the scenario describes the world)."""
+
+    dt: float = 0.1
+    """Policy step in seconds; must divide the 0.4 s history cadence."""
+    max_substep_displacement: float = 0.5
+    """Physics substeps are chosen so no body moves further than this per substep (no tunnelling)."""
+    reward: RewardConfig = field(default_factory=RewardConfig)
+    """Reward weights."""
+    observation: ObservationConfig = field(default_factory=ObservationConfig)
+    """Observation layout."""
+    render_size: tuple[int, int] = (800, 300)
+    """Width and height of rendered frames in pixels."""
+    render_extent: float = 80.0
+    """Metres of road shown across the rendered frame, centred on the ego."""

@@ -1,0 +1,160 @@
+"""`crossing_env/Crossing-v0`: drive the ego car through a pedestrian crossing.
+
+The env is a thin template around `World`: `reset` builds the world from a scenario with the env's RNG;
+`step` applies the action → advances the world → observes → computes named reward terms →
+terminated (collision, end of road) / truncated (scenario duration).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from crossing_env.config import EgoConfig, EnvConfig, ScenarioConfig
+from crossing_env.observation import ObservationBuilder
+from crossing_env.types import CrossingObs, GroundTruth, StepReturn
+from crossing_env.world import World
+
+END_OF_ROAD_MARGIN = 10.0
+"""The episode terminates when the ego's centre is this close to the end of the road (m)."""
+
+
+def resolve_scenario(scenario: str | os.PathLike[str] | ScenarioConfig | None) -> ScenarioConfig:
+    """A scenario config from a built-in name, a TOML path, a config object, or None (the default)."""
+    if scenario is None:
+        return ScenarioConfig()
+    if isinstance(scenario, ScenarioConfig):
+        return scenario
+    if isinstance(scenario, (str, Path)) and str(scenario) == "default":
+        return ScenarioConfig()
+    from scenarios import load_scenario
+
+    return load_scenario(scenario)
+
+
+def action_to_acceleration(action: np.ndarray | float, ego: EgoConfig) -> np.ndarray:
+    """Map normalised actions in [−1, 1] to accelerations: −1 → −max_deceleration, +1 → max_acceleration.
+
+    The two halves are scaled separately so that 0 always means "hold speed". Works on batches.
+    """
+    u = np.clip(np.asarray(action, dtype=np.float64), -1.0, 1.0)
+    return np.where(u >= 0, u * ego.max_acceleration, u * ego.max_deceleration)
+
+
+def acceleration_to_action(acceleration: np.ndarray | float, ego: EgoConfig) -> np.ndarray:
+    """Inverse of `action_to_acceleration` (clipped to the feasible range), as float32."""
+    a = np.asarray(acceleration, dtype=np.float64)
+    u = np.where(a >= 0, a / ego.max_acceleration, a / ego.max_deceleration)
+    return np.clip(u, -1.0, 1.0).astype(np.float32)
+
+
+class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
+    """A car approaching a pedestrian crossing; the action is its normalised longitudinal acceleration.
+
+    Action: shape (1,) in [−1, 1]; −1 is full braking (`EgoConfig.max_deceleration`), +1 full throttle
+    (`EgoConfig.max_acceleration`), 0 holds speed (see `action_to_acceleration`).
+
+    Observation: a Dict of float32 boxes (`crossing_env.observation`): ego state, K pedestrian slots
+    (presence, relative position and velocity, on-crossing / waiting / on-road flags) with each slot's
+    0.4 s position history, and M vehicle slots. Reward terms are reported in `info["rewards"]`; the
+    world's ground truth (for metrics only) in `info["ground_truth"]`.
+    """
+
+    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}  # noqa: RUF012 - Gymnasium API
+
+    def __init__(
+        self,
+        scenario: str | os.PathLike[str] | ScenarioConfig | None = None,
+        config: EnvConfig | None = None,
+        render_mode: str | None = None,
+    ) -> None:
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode={render_mode!r}; allowed: {self.metadata['render_modes']} or None")
+        self.scenario = resolve_scenario(scenario)
+        self.config = config or EnvConfig()
+        self.render_mode = render_mode
+        self.action_space = spaces.Box(low=-1.0, high=1.0, shape=(1,), dtype=np.float32)
+        self._observer = ObservationBuilder(self.scenario, self.config.observation)
+        self.observation_space = self._observer.space
+        self.world: World | None = None
+        self._renderer = None
+
+    # ------------------------------------------------------------------ Gymnasium API
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[CrossingObs, dict]:
+        """Start a new episode; `options={"scenario": ...}` switches scenario for this and later episodes."""
+        super().reset(seed=seed)
+        if options and "scenario" in options:
+            new = resolve_scenario(options["scenario"])
+            if replace(new, name="", description="") != replace(self.scenario, name="", description=""):
+                self.scenario = new
+                self._observer = ObservationBuilder(new, self.config.observation)
+                if self._observer.space != self.observation_space:
+                    raise ValueError("options['scenario'] must keep the observation layout")
+        self.world = World(self.scenario, self.np_random, self.config)
+        gt = self.world.ground_truth()
+        info = {"ground_truth": gt, "rewards": {}, "time": gt.time}
+        if self.render_mode == "human":
+            self.render()
+        return self._observer.build(self.world), info
+
+    def step(self, action: np.ndarray) -> StepReturn:
+        """Apply the ego acceleration for one `dt`."""
+        if self.world is None:
+            raise RuntimeError("call reset() before step()")
+        u = np.asarray(action, dtype=np.float64).reshape(-1)
+        if u.size != 1 or not np.isfinite(u[0]):
+            raise ValueError(f"action must be one finite number in [-1, 1], got {action!r}")
+        accel = float(action_to_acceleration(u[0], self.scenario.ego))
+        world = self.world
+        x_before = world.traffic.x[0]
+        world.step(accel)
+        gt = world.ground_truth()
+        rewards = self._rewards(gt, world.traffic.x[0] - x_before)
+        terminated = bool(gt.collisions) or world.traffic.x[0] >= self.scenario.road.length - END_OF_ROAD_MARGIN
+        truncated = (not terminated) and world.time >= self.scenario.duration - 1e-9
+        info = {"ground_truth": gt, "rewards": rewards, "time": gt.time}
+        if self.render_mode == "human":
+            self.render()
+        return self._observer.build(world), float(sum(rewards.values())), terminated, bool(truncated), info
+
+    def _rewards(self, gt: GroundTruth, progress: float) -> dict[str, float]:
+        """Named, weighted reward terms."""
+        w = self.config.reward
+        ca = gt.conflict_area
+        ego_front = gt.ego_position[0] + gt.ego_size[0] / 2
+        ego_rear = gt.ego_position[0] - gt.ego_size[0] / 2
+        in_crossing = ego_front > ca.x_min and ego_rear < ca.x_max
+        y = gt.pedestrian_positions[:, 1]
+        peds_in_half = gt.on_crossing & (y >= ca.half_y_min) & (y <= ca.half_y_max)
+        return {
+            "progress": w.progress * float(progress),
+            "collision": w.collision if gt.collisions else 0.0,
+            "hard_braking": w.hard_braking if gt.ego_acceleration <= -w.hard_braking_threshold else 0.0,
+            "failing_to_yield": w.failing_to_yield if in_crossing and bool(peds_in_half.any()) else 0.0,
+        }
+
+    def render(self) -> np.ndarray | None:
+        """Top-down frame: `rgb_array` returns it, `human` shows it in a window."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode")
+            return None
+        if self.world is None:
+            raise RuntimeError("call reset() before render()")
+        from crossing_env.render import TopDownRenderer
+
+        if self._renderer is None:
+            self._renderer = TopDownRenderer(self.config, human=self.render_mode == "human")
+        frame = self._renderer.draw(self.world)
+        return frame if self.render_mode == "rgb_array" else None
+
+    def close(self) -> None:
+        """Release the window, if any."""
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None

@@ -1,0 +1,403 @@
+"""Pedestrian population: spawning, trip state machine, crossing decisions and irrational acts.
+
+State lives in fixed-size numpy arrays (a pool of `max_pedestrians` slots) so every per-step update is
+vectorised; Python loops only run over the rare events (a spawn, a state change).
+
+A pedestrian's trip: APPROACHING (walk along the sidewalk to the kerb point where it will cross) →
+WAITING (gap acceptance through the decision model) → CROSSING → LEAVING (walk to the final goal) →
+despawn. Pedestrians who do not intend to cross go straight to LEAVING along their sidewalk.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from crossing_env.config import PedestrianConfig, PedestrianSpawn, ScenarioConfig
+from crossing_env.decisions import CrossingDecisionModel, DecisionContext
+from crossing_env.road import RoadGeometry
+from crossing_env.social_force import limit_speed, social_force_acceleration
+from crossing_env.types import BehaviourEvent, FloatArray, PedState
+
+# Plain ints for the hot path (IntEnum comparisons go through Python-level enum machinery).
+INACTIVE, APPROACHING, WAITING, CROSSING, LEAVING = (int(state) for state in PedState)
+
+HISTORY_INTERVAL = 0.4
+"""Seconds between history samples: the ETH/UCY cadence trajectory predictors are trained on."""
+KERB_STANDOFF = 0.45
+"""Distance in metres from the kerb line at which a waiting pedestrian stands."""
+ARRIVAL_TOLERANCE = 0.35
+"""Distance in metres at which a waypoint counts as reached."""
+
+
+@dataclass(frozen=True)
+class CarSnapshot:
+    """What pedestrians need to know about the vehicles for their gap decisions."""
+
+    x: FloatArray
+    """(C,) front-centre... centre x of each moving vehicle."""
+    lane: np.ndarray
+    """(C,) lane index."""
+    direction: FloatArray
+    """(C,) +1 / −1 travel direction."""
+    speed: FloatArray
+    """(C,) speed in m/s."""
+    half_length: FloatArray
+    """(C,) half vehicle length."""
+    boxes: FloatArray
+    """(C_all, 4) boxes of all vehicles (parked included) for the social force."""
+
+
+class PedestrianPopulation:
+    """All pedestrians of an episode, as a pool of array slots."""
+
+    def __init__(
+        self,
+        scenario: ScenarioConfig,
+        geometry: RoadGeometry,
+        decision_model: CrossingDecisionModel,
+        rng: np.random.Generator,
+        dt: float,
+        history_length: int = 8,
+    ) -> None:
+        self.scenario = scenario
+        self.config: PedestrianConfig = scenario.pedestrians
+        self.geometry = geometry
+        self.decision_model = decision_model
+        self.rng = rng
+        self.dt = dt
+        steps = HISTORY_INTERVAL / dt
+        if abs(steps - round(steps)) > 1e-9 or round(steps) < 1:
+            raise ValueError(f"dt={dt} must divide the {HISTORY_INTERVAL} s history interval")
+        self.history_every = round(steps)
+        self.history_length = history_length
+        n = self.config.max_pedestrians
+        self.capacity = n
+        self.state = np.zeros(n, dtype=np.int64)
+        self.ids = np.full(n, -1, dtype=np.int64)
+        self.position = np.zeros((n, 2))
+        self.velocity = np.zeros((n, 2))
+        self.radius = np.full(n, self.config.radius)
+        self.desired_speed = np.ones(n)
+        self.base_speed = np.ones(n)
+        self.side = np.ones(n)  # +1 starts south (walks north), −1 starts north
+        self.intends = np.zeros(n, dtype=bool)
+        self.crossing_x = np.zeros(n)
+        self.waypoint = np.zeros((n, 2))
+        self.goal = np.zeros((n, 2))
+        self.critical_gap = np.full(n, 5.5)
+        self.phase = np.full(n, math.pi / 2)
+        self.distracted = np.zeros(n, dtype=bool)
+        self.runs = np.zeros(n, dtype=bool)
+        self.hesitate_at = np.full(n, np.inf)  # fraction of the crossing at which to pause
+        self.hesitate_left = np.zeros(n)
+        self.turn_back_at = np.full(n, np.inf)
+        self.red_violator = np.zeros(n, dtype=bool)
+        self.jaywalker = np.zeros(n, dtype=bool)
+        self.crossed_on_red = np.zeros(n, dtype=bool)
+        self.wait_time = np.zeros(n)
+        self.group = np.full(n, -1, dtype=np.int64)
+        self.force_intensity = np.full(n, self.config.social_force.ped_intensity)
+        self.history = np.zeros((n, history_length, 2))
+        self.next_id = 0
+        self.next_group = 1_000_000  # random groups get ids far from scenario-given ones
+        self.step_count = 0
+        self.time = 0.0
+        self.events: list[BehaviourEvent] = []
+        self._pending = sorted(self.config.spawns, key=lambda s: s.time)
+        self._kerb_y = (geometry.kerb_south - KERB_STANDOFF, geometry.kerb_north + KERB_STANDOFF)
+        self._walk_y = (
+            geometry.kerb_south - 0.55 * scenario.road.sidewalk_width,
+            geometry.kerb_north + 0.55 * scenario.road.sidewalk_width,
+        )
+        self._speed_scale = 0.9 if scenario.night else 1.0
+
+    # ------------------------------------------------------------------ spawning
+    @property
+    def active(self) -> np.ndarray:
+        """(n,) mask of slots in use."""
+        return self.state != INACTIVE
+
+    def _draw_speed(self) -> float:
+        c = self.config
+        v = self.rng.normal(c.desired_speed_mean, c.desired_speed_std)
+        return float(np.clip(v, c.desired_speed_min, c.desired_speed_max)) * self._speed_scale
+
+    def _draw_critical_gap(self) -> float:
+        b = self.config.behaviour
+        mean, sd = b.critical_gap_mean, b.critical_gap_std
+        sigma2 = math.log(1.0 + (sd / mean) ** 2)
+        value = self.rng.lognormal(math.log(mean) - sigma2 / 2, math.sqrt(sigma2))
+        return max(b.critical_gap_floor, float(value))
+
+    def _draw_phase(self) -> float:
+        b = self.config.behaviour
+        if b.phase_distribution == "classical":
+            return math.pi / 2
+        if b.phase_distribution == "uniform":
+            return float(self.rng.uniform(b.phase_mean - b.phase_std, b.phase_mean + b.phase_std))
+        return float(self.rng.normal(b.phase_mean, b.phase_std))
+
+    def spawn(self, spawn: PedestrianSpawn) -> int | None:
+        """Place one pedestrian; returns its slot, or None if the pool is full."""
+        free = np.flatnonzero(self.state == INACTIVE)
+        if free.size == 0:
+            return None
+        i = int(free[0])
+        b = self.config.behaviour
+        geo = self.geometry
+        side = 1.0 if spawn.side == "south" else -1.0
+        start_y = self._walk_y[0] if side > 0 else self._walk_y[1]
+        far_y = self._walk_y[1] if side > 0 else self._walk_y[0]
+        self.ids[i] = self.next_id
+        self.next_id += 1
+        self.side[i] = side
+        self.position[i] = (spawn.x, start_y)
+        self.velocity[i] = 0.0
+        self.radius[i] = spawn.radius if spawn.radius is not None else self.config.radius
+        speed = spawn.desired_speed if spawn.desired_speed is not None else self._draw_speed()
+        self.distracted[i] = (
+            spawn.distracted if spawn.distracted is not None else self.rng.random() < b.distraction_rate
+        )
+        if self.distracted[i]:
+            speed *= 0.8  # phone users walk about 20% slower
+        self.base_speed[i] = speed
+        self.desired_speed[i] = speed
+        self.critical_gap[i] = spawn.critical_gap if spawn.critical_gap is not None else self._draw_critical_gap()
+        if self.distracted[i]:
+            self.critical_gap[i] *= 0.7  # a cursory glance: shorter gaps get accepted
+        self.phase[i] = spawn.phase if spawn.phase is not None else self._draw_phase()
+        self.runs[i] = spawn.runs if spawn.runs is not None else self.rng.random() < b.running_rate
+        self.red_violator[i] = self.rng.random() < b.red_light_rate
+        self.group[i] = spawn.group
+        self.intends[i] = spawn.crosses
+        self.wait_time[i] = 0.0
+        self.hesitate_left[i] = 0.0
+        self.crossed_on_red[i] = False
+        self.hesitate_at[i] = self.rng.uniform(0.2, 0.8) if self.rng.random() < b.hesitation_rate else np.inf
+        self.turn_back_at[i] = self.rng.uniform(0.1, 0.4) if self.rng.random() < b.turn_back_rate else np.inf
+        self.force_intensity[i] = self.config.social_force.ped_intensity
+        if spawn.crossing_x is not None:
+            cx = spawn.crossing_x
+            self.jaywalker[i] = not (geo.has_crossing and geo.crossing_rect.x_min <= cx <= geo.crossing_rect.x_max)
+        elif geo.has_crossing and spawn.crosses:
+            half = max(0.0, self.scenario.crossing.width / 2 - 0.6)
+            cx = self.scenario.crossing.position + self.rng.uniform(-half, half)
+            self.jaywalker[i] = False
+        else:
+            cx = spawn.x
+            self.jaywalker[i] = spawn.crosses
+        self.crossing_x[i] = cx
+        self.history[i] = self.position[i]
+        if spawn.crosses:
+            self.state[i] = APPROACHING
+            self.waypoint[i] = (cx, self._kerb_y[0] if side > 0 else self._kerb_y[1])
+            onward = np.sign(cx - spawn.x) or (1.0 if self.rng.random() < 0.5 else -1.0)
+            self.goal[i] = (cx + onward * self.rng.uniform(8.0, 20.0), far_y)
+            if self.jaywalker[i]:
+                self._log(i, "jaywalk")
+        else:
+            self.state[i] = LEAVING
+            direction = 1.0 if spawn.x < self.scenario.crossing.position else -1.0
+            self.goal[i] = (spawn.x + direction * self.rng.uniform(40.0, 60.0), start_y)
+            self.waypoint[i] = self.goal[i]
+        if self.distracted[i]:
+            self._log(i, "distracted")
+        return i
+
+    def _random_arrivals(self) -> None:
+        """Poisson arrivals on both sidewalks near the crossing."""
+        c = self.config
+        if c.spawn_rate <= 0:
+            return
+        count = self.rng.poisson(c.spawn_rate / 60.0 * self.dt)
+        for _ in range(count):
+            side = "south" if self.rng.random() < 0.5 else "north"
+            offset = self.rng.uniform(4.0, max(4.5, c.spawn_extent)) * (1 if self.rng.random() < 0.5 else -1)
+            x = float(np.clip(self.scenario.crossing.position + offset, 1.0, self.scenario.road.length - 1.0))
+            crosses = bool(self.rng.random() < c.cross_fraction)
+            crossing_x = None
+            if crosses and self.rng.random() < c.behaviour.jaywalk_rate:
+                crossing_x = x  # crosses where it stands, away from the zebra
+            group = -1
+            companion = self.rng.random() < c.group_probability
+            if companion:
+                group = self.next_group
+                self.next_group += 1
+            spawn = PedestrianSpawn(x=x, side=side, crosses=crosses, crossing_x=crossing_x, group=group)
+            first = self.spawn(spawn)
+            if companion and first is not None:
+                mate = PedestrianSpawn(
+                    x=x - 0.8 * np.sign(offset), side=side, crosses=crosses,
+                    crossing_x=self.crossing_x[first] + 0.6, group=group,
+                )
+                self.spawn(mate)
+
+    # ------------------------------------------------------------------ per step
+    def _log(self, i: int, kind: str) -> None:
+        self.events.append(BehaviourEvent(time=self.time, pedestrian_id=int(self.ids[i]), kind=kind))
+
+    def gaps(self, cars: CarSnapshot, rows: np.ndarray) -> FloatArray:
+        """Time gap (s) until the first approaching car reaches each given pedestrian's crossing line.
+
+        Cars already past the line, stopped cars and cars in lanes the pedestrian does not cross are
+        ignored; a car whose body already covers the line gives a gap of 0.
+        """
+        if rows.size == 0 or cars.x.size == 0:
+            return np.full(rows.size, np.inf)
+        cx = self.crossing_x[rows][:, None]
+        # Distance from the car's front to the pedestrian's line, along the car's travel direction.
+        ahead = (cx - cars.x[None, :]) * cars.direction[None, :] - cars.half_length[None, :]
+        covering = (ahead < 0) & (ahead > -2 * cars.half_length[None, :] - 0.5)
+        approaching = (ahead >= 0) & (cars.speed[None, :] > 0.3)
+        tta = np.where(approaching, ahead / np.maximum(cars.speed[None, :], 1e-3), np.inf)
+        tta = np.where(covering, 0.0, tta)
+        return tta.min(axis=1)
+
+    def step(self, time: float, cars: CarSnapshot, pedestrian_green: bool | None) -> None:
+        """Advance decisions and desired velocities by one step (physics integrates positions)."""
+        self.time = time
+        self.events = []
+        while self._pending and self._pending[0].time <= time + 1e-9:
+            self.spawn(self._pending.pop(0))
+        self._random_arrivals()
+        self._update_states(cars, pedestrian_green)
+        self._update_velocities(cars)
+
+    def _update_states(self, cars: CarSnapshot, pedestrian_green: bool | None) -> None:
+        dist = np.linalg.norm(self.waypoint - self.position, axis=1)
+        arrived = dist < ARRIVAL_TOLERANCE
+        st = self.state
+        # Each transition applies to the state held at the start of the step (one transition per step),
+        # because `arrived` refers to the waypoint of that state.
+        before = st.copy()
+        # APPROACHING → WAITING at the kerb.
+        for i in np.flatnonzero((before == APPROACHING) & arrived):
+            st[i] = WAITING
+            self.wait_time[i] = 0.0
+        # WAITING: decide.
+        waiting = np.flatnonzero((st == WAITING) & (before == WAITING))
+        if waiting.size:
+            self.wait_time[waiting] += self.dt
+            red = np.full(waiting.size, pedestrian_green is False)
+            red &= ~self.jaywalker[waiting]  # the signal only governs the zebra
+            ctx = DecisionContext(
+                gap=self.gaps(cars, waiting),
+                critical_gap=self.critical_gap[waiting],
+                phase=self.phase[waiting],
+                waited=self.wait_time[waiting],
+                red=red,
+                red_violator=self.red_violator[waiting],
+                dt=self.dt,
+            )
+            prob = self.decision_model.probability(ctx)
+            go = self.rng.random(waiting.size) < prob
+            # Groups move together: if one member goes, waiting companions go too.
+            groups = self.group[waiting]
+            if np.any(groups >= 0) and go.any():
+                moving_groups = groups[go & (groups >= 0)]
+                go |= (groups >= 0) & np.isin(groups, moving_groups)
+            for k in np.flatnonzero(go):
+                self._start_crossing(int(waiting[k]), bool(red[k]))
+        # CROSSING: irrational acts and arrival.
+        crossing = np.flatnonzero(before == CROSSING)
+        if crossing.size:
+            road_w = self.geometry.kerb_north - self.geometry.kerb_south
+            progress = np.where(
+                self.side[crossing] > 0,
+                self.position[crossing, 1] - self.geometry.kerb_south,
+                self.geometry.kerb_north - self.position[crossing, 1],
+            ) / road_w
+            for k in np.flatnonzero(progress >= self.hesitate_at[crossing]):
+                i = int(crossing[k])
+                self.hesitate_at[i] = np.inf
+                self.hesitate_left[i] = self.rng.uniform(1.0, 2.5)
+                self._log(i, "hesitate")
+            for k in np.flatnonzero(progress >= self.turn_back_at[crossing]):
+                i = int(crossing[k])
+                self.turn_back_at[i] = np.inf
+                self.side[i] = -self.side[i]
+                self.state[i] = APPROACHING  # head back to the kerb it came from, then re-decide
+                self.waypoint[i] = (self.position[i, 0], self._kerb_y[0] if self.side[i] > 0 else self._kerb_y[1])
+                self.goal[i, 1] = self._walk_y[1] if self.side[i] > 0 else self._walk_y[0]
+                self.desired_speed[i] = self.base_speed[i] * 1.2
+                self._log(i, "turn_back")
+            done = crossing[arrived[crossing] & (st[crossing] == CROSSING)]
+            st[done] = LEAVING
+            self.waypoint[done] = self.goal[done]
+            self.desired_speed[done] = self.base_speed[done]
+        self.hesitate_left = np.maximum(0.0, self.hesitate_left - self.dt)
+        # LEAVING → despawn at the goal or off the map.
+        leaving = (before == LEAVING) & arrived
+        x = self.position[:, 0]
+        off_map = (x < -5.0) | (x > self.scenario.road.length + 5.0)
+        gone = (leaving | (off_map & (st != INACTIVE)))
+        if gone.any():
+            st[gone] = INACTIVE
+            self.ids[gone] = -1
+            self.velocity[gone] = 0.0
+
+    def _start_crossing(self, i: int, red: bool) -> None:
+        self.state[i] = CROSSING
+        far = self._kerb_y[1] if self.side[i] > 0 else self._kerb_y[0]
+        self.waypoint[i] = (self.crossing_x[i] + self.rng.normal(0.0, 0.2), far)
+        self.crossed_on_red[i] = red
+        self._log(i, "start_crossing")
+        if red:
+            self._log(i, "red_light")
+        if self.runs[i]:
+            self.desired_speed[i] = min(2.0 * self.base_speed[i], 3.5)
+            self._log(i, "run")
+
+    def _update_velocities(self, cars: CarSnapshot) -> None:
+        act = np.flatnonzero(self.active)
+        if act.size == 0:
+            return
+        st = self.state[act]
+        v0 = self.desired_speed[act].copy()
+        v0[st == WAITING] = 0.0
+        v0[self.hesitate_left[act] > 0] = 0.0
+        stay = st != CROSSING
+        # A waiting pedestrian stands at the kerb; only crossing pedestrians may be on the carriageway.
+        stay &= ~((st == APPROACHING) & self._on_road(act))
+        sf = self.config.social_force
+        acc = social_force_acceleration(
+            self.position[act], self.velocity[act], self.waypoint[act], v0, self.radius[act], stay,
+            cars.boxes, (self.geometry.kerb_south, self.geometry.kerb_north), sf,
+            ped_intensity=self.force_intensity[act],
+        )
+        vel = self.velocity[act] + acc * self.dt
+        self.velocity[act] = limit_speed(vel, np.maximum(v0, 0.05) * sf.max_speed_factor)
+
+    def _on_road(self, rows: np.ndarray) -> np.ndarray:
+        y = self.position[rows, 1]
+        return (y > self.geometry.kerb_south) & (y < self.geometry.kerb_north)
+
+    def record_history(self) -> None:
+        """Append the current positions to the 0.4 s history (call once per step, after physics)."""
+        self.step_count += 1
+        if self.step_count % self.history_every == 0:
+            self.history[:, :-1] = self.history[:, 1:]
+            self.history[:, -1] = self.position
+
+    def on_crossing(self) -> np.ndarray:
+        """(n,) centre inside the zebra area."""
+        if not self.geometry.has_crossing:
+            return np.zeros(self.capacity, dtype=bool)
+        return self.geometry.crossing_rect.contains(self.position) & self.active
+
+    def on_road(self) -> np.ndarray:
+        """(n,) centre on the carriageway."""
+        y = self.position[:, 1]
+        return (y > self.geometry.kerb_south) & (y < self.geometry.kerb_north) & self.active
+
+    def legal(self) -> np.ndarray:
+        """(n,) crossing legally: on the zebra and not against red, or not on the road at all."""
+        kind = self.scenario.crossing.kind
+        on_road = self.on_road()
+        if kind == "none":
+            return ~on_road
+        ok = self.on_crossing() & ~self.crossed_on_red & ~self.jaywalker
+        return ~on_road | ok

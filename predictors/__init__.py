@@ -1,0 +1,1 @@
+"""Trajectory and crossing-intention predictors, and the observation wrappers that plug them into the env."""

@@ -1,0 +1,219 @@
+"""Evaluate every predictor on the ETH/UCY leave-one-out test scenes and SDD (``python -m predictors.evaluate``).
+
+Protocol (``shared/docs/prediction.md`` §1): Social-GAN windows (8 observed, 12 predicted, 0.4 s; a
+pedestrian must be present in all 20 frames; windows with >= 2 such pedestrians), whole test recordings.
+Metrics in metres:
+
+* ``k1``: most-likely prediction (learned models feed back the Gaussian means; CVM-S's most likely path is
+  CVM's);
+* ``ped20``: best-of-20 *per pedestrian*, ADE and FDE minimised separately (Social-STGCNN, Trajectron++);
+* ``scene20``: best-of-20 *per scene* (Social-GAN ``evaluate_model.py``): per window the sample whose summed
+  error over the window's pedestrians is smallest, ADE and FDE minimised separately.
+
+Learned models use ``predictors/weights/<kind>_<scene>.pt`` (trained on that scene's ``train/`` split,
+selected on ``val/``). For SDD, ``<kind>_sdd.pt`` is used if present, else ``<kind>_all.pt`` (trained on all
+ETH/UCY recordings: a cross-dataset result, flagged in the output). SDD glitch steps are not filtered.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from predictors.baselines import cvm, cvm_samples, kalman_predict, kalman_samples
+from predictors.data import SCENES, Windows, default_data_root, iterate_batches, load_split
+from predictors.models import MODEL_KINDS
+from predictors.train import WEIGHTS_DIR, load_model
+
+BASELINES: tuple[str, ...] = ("cvm", "cvm-s", "kalman")
+ALL_MODELS: tuple[str, ...] = (*BASELINES, *MODEL_KINDS)
+EVAL_SCENES: tuple[str, ...] = (*SCENES, "sdd")
+METRICS: tuple[str, ...] = ("k1", "ped20", "scene20")
+
+Predictor = Callable[[torch.Tensor, torch.Tensor, int, torch.Generator], tuple[torch.Tensor, torch.Tensor]]
+
+
+def errors(pred: torch.Tensor, fut: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per-pedestrian ADE and FDE, ``pred (..., N, 12, 2)`` against ``fut (N, 12, 2)``."""
+    d = (pred - fut).norm(dim=-1)
+    return d.mean(dim=-1), d[..., -1]
+
+
+def scene_min(err: torch.Tensor, seq_start_end: torch.Tensor) -> torch.Tensor:
+    """Per window, the smallest over samples of the summed error ``err (S, N)``; returns ``(W,)`` sums."""
+    sizes = seq_start_end[:, 1] - seq_start_end[:, 0]
+    group = torch.repeat_interleave(torch.arange(len(sizes)), sizes)
+    sums = err.new_zeros(err.shape[0], len(sizes)).index_add_(1, group, err)
+    return sums.min(dim=0).values
+
+
+def weights_for(kind: str, scene: str, weights_dir: Path) -> Path | None:
+    """Checkpoint used for ``kind`` on ``scene`` (see module docstring), or ``None`` if absent."""
+    for name in ([f"{kind}_{scene}.pt"] + ([f"{kind}_all.pt"] if scene == "sdd" else [])):
+        if (weights_dir / name).is_file():
+            return weights_dir / name
+    return None
+
+
+def make_predictor(name: str, scene: str, weights_dir: Path) -> tuple[Predictor | None, str]:
+    """A function ``(obs, seq_start_end, k, generator) -> (most_likely, samples)`` and its source label."""
+    if name == "cvm":
+        return (lambda o, s, k, g: (cvm(o), cvm(o)[None].expand(k, -1, -1, -1))), "-"
+    if name == "cvm-s":
+        return (lambda o, s, k, g: (cvm(o), cvm_samples(o, k, g))), "sigma=25deg"
+    if name == "kalman":
+        return (lambda o, s, k, g: (kalman_predict(o), kalman_samples(o, k, g))), "-"
+    path = weights_for(name, scene, weights_dir)
+    if path is None:
+        return None, "no weights"
+    model = load_model(path)
+    return (lambda o, s, k, g: (model.predict(o, s), model.sample(o, s, k, g))), path.name
+
+
+@torch.no_grad()
+def evaluate_one(
+    predictor: Predictor, w: Windows, num_samples: int, seed: int, batch_peds: int = 256
+) -> dict[str, list[float]]:
+    """ADE/FDE of one predictor on one window set for every metric in :data:`METRICS`."""
+    gen = torch.Generator().manual_seed(seed)
+    acc = {m: np.zeros(2) for m in METRICS}
+    n = 0
+    for b in iterate_batches(w, batch_peds):
+        ml, samples = predictor(b.obs, b.seq_start_end, num_samples, gen)
+        ade1, fde1 = errors(ml, b.fut)
+        ade_s, fde_s = errors(samples, b.fut)
+        acc["k1"] += [float(ade1.sum()), float(fde1.sum())]
+        acc["ped20"] += [float(ade_s.min(0).values.sum()), float(fde_s.min(0).values.sum())]
+        acc["scene20"] += [
+            float(scene_min(ade_s, b.seq_start_end).sum()),
+            float(scene_min(fde_s, b.seq_start_end).sum()),
+        ]
+        n += b.obs.shape[0]
+    return {m: [float(v) for v in acc[m] / max(n, 1)] for m in METRICS}
+
+
+def run(
+    data_root: Path,
+    models: list[str],
+    scenes: list[str],
+    num_samples: int = 20,
+    seed: int = 0,
+    weights_dir: Path = WEIGHTS_DIR,
+) -> dict[str, object]:
+    """Evaluate ``models`` on ``scenes``; return a JSON-ready dict ``results[model][scene][metric]``."""
+    results: dict[str, dict[str, object]] = {}
+    counts: dict[str, list[int]] = {}
+    for si, scene in enumerate(scenes):
+        w = load_split(data_root, scene, "test")
+        counts[scene] = [w.num_windows, w.num_peds]
+        for name in models:
+            pred, source = make_predictor(name, scene, weights_dir)
+            entry: dict[str, object] = {"weights": source}
+            if pred is not None:
+                entry.update(evaluate_one(pred, w, num_samples, seed + 1000 * si))
+            results.setdefault(name, {})[scene] = entry
+            print(f"{name:7s} {scene:6s} {entry}", file=sys.stderr)
+    return {"protocol": "sgan-windows-8-12", "num_samples": num_samples, "seed": seed, "counts": counts, "results": results}
+
+
+def with_average(res: dict[str, object]) -> dict[str, object]:
+    """Add an ``avg`` entry (mean over the five ETH/UCY scenes) per model where all five are present."""
+    for entries in res["results"].values():  # type: ignore[union-attr]
+        if all(s in entries and "k1" in entries[s] for s in SCENES):
+            entries["avg"] = {m: [float(np.mean([entries[s][m][i] for s in SCENES])) for i in (0, 1)] for m in METRICS}
+    return res
+
+
+def to_markdown(res: dict[str, object]) -> str:
+    """Markdown tables, one per metric."""
+    titles = {
+        "k1": "Most likely (K = 1)",
+        "ped20": "Best-of-20, per pedestrian (ADE and FDE minimised separately)",
+        "scene20": "Best-of-20, per scene (Social-GAN `evaluate_model.py` style)",
+    }
+    results: dict[str, dict[str, dict]] = res["results"]  # type: ignore[assignment]
+    cols = [*SCENES, "avg", "sdd"]
+    lines = []
+    for m in METRICS:
+        lines += [f"### {titles[m]}", "", "| Model | " + " | ".join(c.upper() for c in cols) + " |"]
+        lines.append("|---" * (len(cols) + 1) + "|")
+        for name, entries in results.items():
+            cells = []
+            for c in cols:
+                e = entries.get(c, {})
+                if m in e:
+                    flag = "†" if c == "sdd" and str(e.get("weights", "")).endswith("_all.pt") else ""
+                    cells.append(f"{e[m][0]:.2f}/{e[m][1]:.2f}{flag}")
+                else:
+                    cells.append("–")
+            lines.append(f"| {name} | " + " | ".join(cells) + " |")
+        lines.append("")
+    counts = res.get("counts", {})
+    lines.append("Test windows / pedestrian instances: " + ", ".join(f"{s} {c[0]}/{c[1]}" for s, c in counts.items()))
+    lines.append("")
+    lines.append("† SDD evaluated with the model trained on all ETH/UCY recordings (cross-dataset).")
+    return "\n".join(lines) + "\n"
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+    with os.fdopen(fd, "w") as fh:
+        fh.write(text)
+    os.replace(tmp, path)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Console entry point."""
+    p = argparse.ArgumentParser(prog="python -m predictors.evaluate", description=__doc__.splitlines()[0])
+    p.add_argument("--data", default="", help="data root (default $CROSSING_DATA or <repo>/../shared/data)")
+    p.add_argument("--models", default=",".join(ALL_MODELS), help=f"comma list from {ALL_MODELS}")
+    p.add_argument("--scenes", default=",".join(EVAL_SCENES), help=f"comma list from {EVAL_SCENES}")
+    p.add_argument("--samples", type=int, default=20, help="K for best-of-K")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--weights-dir", default=str(WEIGHTS_DIR))
+    p.add_argument("--json", action="store_true", help="print JSON instead of markdown")
+    p.add_argument("--save", default="", help="also write the JSON results to this file")
+    p.add_argument("--merge", nargs="*", default=None, help="merge saved JSON files instead of evaluating")
+    p.add_argument("--threads", type=int, default=1)
+    a = p.parse_args(argv)
+    torch.set_num_threads(a.threads)
+    try:
+        if a.merge is not None:
+            res: dict[str, object] = {"results": {}, "counts": {}}
+            for f in a.merge:
+                part = json.loads(Path(f).read_text())
+                res["counts"].update(part["counts"])  # type: ignore[union-attr]
+                for name, entries in part["results"].items():
+                    res["results"].setdefault(name, {}).update(entries)  # type: ignore[union-attr]
+                res.update({k: part[k] for k in ("protocol", "num_samples", "seed") if k in part})
+        else:
+            models = [m for m in a.models.split(",") if m]
+            scenes = [s for s in a.scenes.split(",") if s]
+            for m in models:
+                if m not in ALL_MODELS:
+                    raise ValueError(f"--models: unknown model {m!r}; choose from {ALL_MODELS}")
+            for s in scenes:
+                if s not in EVAL_SCENES:
+                    raise ValueError(f"--scenes: unknown scene {s!r}; choose from {EVAL_SCENES}")
+            root = Path(a.data) if a.data else default_data_root()
+            res = run(root, models, scenes, a.samples, a.seed, Path(a.weights_dir))
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"predictors.evaluate: error: {exc}", file=sys.stderr)
+        return 2
+    res = with_average(res)
+    if a.save:
+        _write_atomic(Path(a.save), json.dumps(res, indent=1))
+    print(json.dumps(res, indent=1) if a.json else to_markdown(res))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

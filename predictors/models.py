@@ -1,0 +1,323 @@
+"""Recurrent trajectory predictors with grid social pooling: S-CGRU, S-GRU, S-LSTM and a vanilla LSTM.
+
+All four share one code path (:class:`SocialRecurrent`): per-pedestrian input embedding of the last
+displacement, an optional social tensor (neighbours' states summed into a grid), a recurrent cell, and a
+bivariate Gaussian head ``(mu_x, mu_y, sigma_x, sigma_y, rho)`` over the next displacement. Only the cell
+and the pooling frame differ, so the comparison isolates the cell.
+
+Pooling (vectorised; no per-pedestrian Python loop): all ordered pairs ``(i, j)`` of pedestrians in the
+same window are built once per batch; at each step the offsets ``p_j - p_i`` are optionally rotated into the
+frame of ``i``'s last velocity, masked to the field-of-view sector ``|atan2(y, x)| <= fov / 2``, binned into a
+``G x G`` grid of side ``neighborhood`` metres centred on ``i`` and the neighbours' states are summed into
+their cells with ``index_add_``. Near-stationary pedestrians keep their previous heading; a pedestrian whose
+heading has never been defined pools over the full grid (prediction.md §3, FoV pitfall).
+
+Departures from the papers: Social-LSTM (Alahi et al. 2016) pools in an axis-aligned world-frame grid; we
+keep that for S-LSTM/S-GRU (``pool_frame="world"``) but S-CGRU pools in the heading frame, which is what a
+forward sector needs. ``hidden_size`` is the *real* width of the state for every model: S-CGRU with
+``hidden_size=128`` has 64 complex units (128 real numbers), so the social tensor has the same size for all.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import torch
+from torch import nn
+
+from predictors.cgru import ComplexGRUCell
+from predictors.data import OBS_LEN, PRED_LEN
+
+MODEL_KINDS: tuple[str, ...] = ("s-cgru", "s-gru", "s-lstm", "lstm")
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Hyper-parameters of a :class:`SocialRecurrent` model (saved beside the weights)."""
+
+    kind: str = "s-cgru"
+    """One of ``s-cgru``, ``s-gru``, ``s-lstm``, ``lstm`` (no pooling)."""
+    hidden_size: int = 128
+    """Real width of the recurrent state (S-CGRU: twice its number of complex units)."""
+    embed_size: int = 64
+    """Width of the displacement embedding and of the social-tensor embedding."""
+    grid_size: int = 4
+    """Pooling grid is ``grid_size x grid_size`` cells."""
+    neighborhood: float = 4.0
+    """Side of the square pooling area around each pedestrian, metres."""
+    fov_deg: float = 360.0
+    """Field-of-view sector of the pooling, degrees (360 = no sector)."""
+    pool_frame: str = "world"
+    """``world`` (axis-aligned grid, Social-LSTM) or ``heading`` (grid rotated into the last velocity)."""
+    min_speed: float = 0.05
+    """Displacement per step (metres per 0.4 s) below which the previous heading is kept."""
+    cv_residual: bool = False
+    """Predict the mean displacement as a correction to the last displacement (constant-velocity prior)."""
+
+    def __post_init__(self) -> None:
+        if self.kind not in MODEL_KINDS:
+            raise ValueError(f"ModelConfig.kind must be one of {MODEL_KINDS}, got {self.kind!r}")
+        if self.pool_frame not in ("world", "heading"):
+            raise ValueError(f"ModelConfig.pool_frame must be 'world' or 'heading', got {self.pool_frame!r}")
+        if self.kind == "s-cgru" and self.hidden_size % 2:
+            raise ValueError(f"ModelConfig.hidden_size must be even for s-cgru, got {self.hidden_size}")
+        if not 0.0 < self.fov_deg <= 360.0:
+            raise ValueError(f"ModelConfig.fov_deg must be in (0, 360], got {self.fov_deg}")
+        if self.fov_deg < 360.0 and self.pool_frame != "heading":
+            raise ValueError("ModelConfig.fov_deg < 360 needs pool_frame='heading'")
+
+    def to_dict(self) -> dict[str, object]:
+        """Plain dict for JSON."""
+        return asdict(self)
+
+
+def default_config(kind: str, fov_deg: float = 120.0) -> ModelConfig:
+    """The configuration used for each model kind in this project's tables."""
+    if kind == "s-cgru":
+        return ModelConfig(kind=kind, fov_deg=fov_deg, pool_frame="heading")
+    return ModelConfig(kind=kind)
+
+
+def window_pairs(seq_start_end: torch.Tensor, num_peds: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """All ordered pairs ``(i, j)``, ``i != j``, of pedestrians in the same window (vectorised)."""
+    sse = seq_start_end.to(torch.long)
+    sizes = sse[:, 1] - sse[:, 0]
+    group = torch.repeat_interleave(torch.arange(len(sse)), sizes)
+    if group.numel() != num_peds:
+        raise ValueError(f"seq_start_end covers {group.numel()} pedestrians, batch has {num_peds}")
+    start_of, size_of = sse[group, 0], sizes[group]
+    i = torch.repeat_interleave(torch.arange(num_peds), size_of)
+    first = torch.repeat_interleave(torch.cumsum(size_of, 0) - size_of, size_of)
+    j = start_of[i] + (torch.arange(i.numel()) - first)
+    keep = i != j
+    return i[keep], j[keep]
+
+
+def replicate(seq_start_end: torch.Tensor, num_peds: int, k: int) -> torch.Tensor:
+    """``seq_start_end`` of a batch repeated ``k`` times along the pedestrian axis."""
+    offsets = (torch.arange(k) * num_peds).repeat_interleave(len(seq_start_end))
+    return seq_start_end.repeat(k, 1) + offsets[:, None]
+
+
+def gaussian_params(raw: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Map raw head outputs ``(..., 5)`` to ``mu (..., 2)``, ``sigma (..., 2)``, ``rho (...)``."""
+    mu = raw[..., :2]
+    sigma = torch.exp(raw[..., 2:4].clamp(-6.0, 4.0))
+    rho = 0.99 * torch.tanh(raw[..., 4])
+    return mu, sigma, rho
+
+
+def bivariate_nll(raw: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Negative log-likelihood of ``target (..., 2)`` under the bivariate Gaussians ``raw (..., 5)`` (mean).
+
+    Computed in log space (no density clamp needed), same density as Social-STGCNN's ``bivariate_loss``.
+    """
+    mu, sigma, rho = gaussian_params(raw)
+    z = (target - mu) / sigma
+    one_m = 1.0 - rho * rho
+    quad = (z[..., 0] ** 2 + z[..., 1] ** 2 - 2.0 * rho * z[..., 0] * z[..., 1]) / one_m
+    log_det = torch.log(sigma[..., 0]) + torch.log(sigma[..., 1]) + 0.5 * torch.log(one_m)
+    return (0.5 * quad + log_det + math.log(2.0 * math.pi)).mean()
+
+
+def sample_gaussian(raw: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+    """One draw per row from the bivariate Gaussians ``raw (N, 5)``."""
+    mu, sigma, rho = gaussian_params(raw)
+    e = torch.randn(raw.shape[:-1] + (2,), generator=generator, dtype=raw.dtype).to(raw.device)
+    x = sigma[..., 0] * e[..., 0]
+    y = sigma[..., 1] * (rho * e[..., 0] + torch.sqrt(1.0 - rho * rho) * e[..., 1])
+    return mu + torch.stack([x, y], dim=-1)
+
+
+class SocialRecurrent(nn.Module):
+    """One model class for S-CGRU, S-GRU, S-LSTM and the vanilla LSTM (see module docstring)."""
+
+    def __init__(self, config: ModelConfig) -> None:
+        super().__init__()
+        self.config = config
+        c = config
+        self.pooling = c.kind != "lstm"
+        self.input_embed = nn.Linear(2, c.embed_size)
+        in_size = c.embed_size
+        if self.pooling:
+            self.pool_embed = nn.Linear(c.grid_size * c.grid_size * c.hidden_size, c.embed_size)
+            in_size += c.embed_size
+        if c.kind == "s-cgru":
+            self.cell: nn.Module = ComplexGRUCell(in_size, c.hidden_size // 2)
+        elif c.kind == "s-gru":
+            self.cell = nn.GRUCell(in_size, c.hidden_size)
+        else:
+            self.cell = nn.LSTMCell(in_size, c.hidden_size)
+        self.head = nn.Linear(c.hidden_size, 5)
+
+    # ----------------------------------------------------------------- pooling
+    def social_pool(
+        self,
+        pos: torch.Tensor,
+        heading: torch.Tensor,
+        heading_ok: torch.Tensor,
+        state: torch.Tensor,
+        pairs: tuple[torch.Tensor, torch.Tensor],
+    ) -> torch.Tensor:
+        """Grid social tensor ``(N, G*G*H)`` of neighbours' states (see module docstring)."""
+        c = self.config
+        i, j = pairs
+        n, g = pos.shape[0], c.grid_size
+        d = pos[j] - pos[i]
+        if c.pool_frame == "heading":
+            u = heading[i]
+            x = d[:, 0] * u[:, 0] + d[:, 1] * u[:, 1]
+            y = u[:, 0] * d[:, 1] - u[:, 1] * d[:, 0]
+        else:
+            x, y = d[:, 0], d[:, 1]
+        half, cell = 0.5 * c.neighborhood, c.neighborhood / g
+        cx = torch.floor((x + half) / cell).long()
+        cy = torch.floor((y + half) / cell).long()
+        inside = (cx >= 0) & (cx < g) & (cy >= 0) & (cy < g)
+        if c.fov_deg < 360.0:
+            in_fov = torch.atan2(y, x).abs() <= math.radians(c.fov_deg) / 2.0
+            inside &= in_fov | ~heading_ok[i]
+        idx = i * (g * g) + cy * g + cx
+        out = state.new_zeros(n * g * g, state.shape[1])
+        out.index_add_(0, idx[inside], state[j[inside]])
+        return out.view(n, g * g * state.shape[1])
+
+    # ------------------------------------------------------------------ rollout
+    def _hidden(self, state: tuple[torch.Tensor, ...]) -> torch.Tensor:
+        return state[0]
+
+    def _step(
+        self,
+        rel: torch.Tensor,
+        pos: torch.Tensor,
+        heading: torch.Tensor,
+        heading_ok: torch.Tensor,
+        state: tuple[torch.Tensor, ...],
+        pairs: tuple[torch.Tensor, torch.Tensor],
+        blocks: tuple[torch.Tensor, torch.Tensor] | None,
+    ) -> tuple[torch.Tensor, ...]:
+        x = torch.relu(self.input_embed(rel))
+        if self.pooling:
+            soc = self.social_pool(pos, heading, heading_ok, self._hidden(state), pairs)
+            x = torch.cat([x, torch.relu(self.pool_embed(soc))], dim=1)
+        kind = self.config.kind
+        if kind == "s-cgru":
+            return (self.cell(x, state[0], blocks),)
+        if kind == "s-gru":
+            return (self.cell(x, state[0]),)
+        h, c = self.cell(x, state)
+        return (h, c)
+
+    def _update_heading(
+        self, rel: torch.Tensor, heading: torch.Tensor, heading_ok: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        speed = rel.norm(dim=1, keepdim=True)
+        moving = speed[:, 0] > self.config.min_speed
+        new = torch.where(moving[:, None], rel / speed.clamp_min(1e-9), heading)
+        return new, heading_ok | moving
+
+    def rollout(
+        self,
+        obs: torch.Tensor,
+        seq_start_end: torch.Tensor,
+        future: torch.Tensor | None = None,
+        generator: torch.Generator | None = None,
+        pred_len: int = PRED_LEN,
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Run the model over a batch.
+
+        Args:
+            obs: ``(N, 8, 2)`` observed absolute positions, metres.
+            seq_start_end: ``(W, 2)`` window ranges (pooling only happens within a window).
+            future: ``(N, 12, 2)`` ground-truth future for teacher forcing (training), else ``None``.
+            generator: if given (and no ``future``), feed back samples instead of means.
+            pred_len: number of predicted steps.
+
+        Returns:
+            ``raw (N, 7 + pred_len, 5)`` Gaussian parameters of the displacement *following* each input
+            step from step 1 on (the last ``pred_len`` entries are the predictions), and ``pos (N, pred_len, 2)``
+            the fed-back absolute positions (means, samples or the teacher).
+        """
+        n = obs.shape[0]
+        pairs = window_pairs(seq_start_end, n) if self.pooling else (torch.empty(0), torch.empty(0))
+        blocks = self.cell.recurrent_blocks() if self.config.kind == "s-cgru" else None
+        h0 = obs.new_zeros(n, self.config.hidden_size)
+        state: tuple[torch.Tensor, ...] = (h0,) if self.config.kind in ("s-cgru", "s-gru") else (h0, h0)
+        heading = obs.new_zeros(n, 2)
+        heading[:, 0] = 1.0
+        heading_ok = torch.zeros(n, dtype=torch.bool, device=obs.device)
+        rel = obs.new_zeros(n, 2)
+        pos = obs[:, 0]
+        outs: list[torch.Tensor] = []
+        fed: list[torch.Tensor] = []
+        for t in range(OBS_LEN + pred_len - 1):
+            if t > 0:
+                if t < OBS_LEN:
+                    new_pos = obs[:, t]
+                elif future is not None:
+                    new_pos = future[:, t - OBS_LEN]
+                elif generator is not None:
+                    new_pos = pos + sample_gaussian(outs[-1], generator)
+                else:
+                    new_pos = pos + outs[-1][:, :2]
+                rel, pos = new_pos - pos, new_pos
+                if t >= OBS_LEN:
+                    fed.append(pos)
+                heading, heading_ok = self._update_heading(rel, heading, heading_ok)
+            state = self._step(rel, pos, heading, heading_ok, state, pairs, blocks)
+            if t > 0:
+                out = self.head(self._hidden(state))
+                if self.config.cv_residual:
+                    out = torch.cat([out[:, :2] + rel, out[:, 2:]], dim=1)
+                outs.append(out)
+        last = outs[-1]
+        if future is not None:
+            fed.append(future[:, -1])
+        elif generator is not None:
+            fed.append(pos + sample_gaussian(last, generator))
+        else:
+            fed.append(pos + last[:, :2])
+        return torch.stack(outs, dim=1), torch.stack(fed, dim=1)
+
+    def loss(
+        self,
+        obs: torch.Tensor,
+        future: torch.Tensor,
+        seq_start_end: torch.Tensor,
+        teacher_forcing: bool = False,
+    ) -> torch.Tensor:
+        """Bivariate Gaussian NLL of every next displacement from step 2 on.
+
+        With ``teacher_forcing`` the ground-truth future is fed back (Social-LSTM training); without it the
+        predicted means are fed back during the 12 future steps, as at test time, which avoids the
+        exposure bias of teacher forcing (its rollouts drift on the validation split).
+        """
+        raw, _ = self.rollout(obs, seq_start_end, future=future if teacher_forcing else None)
+        traj = torch.cat([obs, future], dim=1)
+        target = traj[:, 2:] - traj[:, 1:-1]
+        return bivariate_nll(raw, target)
+
+    def predict(self, obs: torch.Tensor, seq_start_end: torch.Tensor) -> torch.Tensor:
+        """Most-likely future ``(N, 12, 2)``: the Gaussian means fed back step by step."""
+        return self.rollout(obs, seq_start_end)[1]
+
+    def sample(
+        self, obs: torch.Tensor, seq_start_end: torch.Tensor, num_samples: int, generator: torch.Generator
+    ) -> torch.Tensor:
+        """``(S, N, 12, 2)`` futures sampled autoregressively, all samples batched in one rollout.
+
+        Each sample is a joint draw for the whole window (neighbours see each other's sampled positions).
+        """
+        n = obs.shape[0]
+        obs_k = obs.repeat(num_samples, 1, 1)
+        sse_k = replicate(seq_start_end, n, num_samples)
+        _, pos = self.rollout(obs_k, sse_k, generator=generator)
+        return pos.view(num_samples, n, -1, 2)
+
+
+def count_parameters(model: nn.Module) -> tuple[int, int]:
+    """``(numel, real degrees of freedom)``; they differ only for complex-dtype parameters."""
+    numel = sum(p.numel() for p in model.parameters())
+    dof = sum(p.numel() * (2 if p.is_complex() else 1) for p in model.parameters())
+    return numel, dof

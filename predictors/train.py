@@ -1,0 +1,257 @@
+"""Train a trajectory predictor (``crossing-train`` / ``python -m predictors.train``).
+
+Training uses the ``train/`` split of a leave-one-out scene (or of SDD, or ``all`` = the union of the
+ETH/UCY ``_train`` files of every recording), with random-rotation augmentation, Adam and teacher-forced
+bivariate Gaussian NLL. Model selection uses the ``val/`` split only (most-likely ADE after each epoch);
+the test split is never read here.
+
+Checkpoints are a dict ``{"format", "config", "state_dict", "meta"}`` of plain types and tensors, loadable
+with ``torch.load(weights_only=True)``; weights are stored in float16 to keep shipped files small and cast
+back to float32 on load.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from predictors.data import SCENES, Windows, default_data_root, iterate_batches, load_files, split_files, to_batch
+from predictors.models import MODEL_KINDS, ModelConfig, SocialRecurrent, default_config
+
+CHECKPOINT_FORMAT = "crossing-env/trajectory-predictor/1"
+WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Command-line arguments of ``crossing-train``."""
+
+    model: str = "s-cgru"
+    """Model kind: s-cgru, s-gru, s-lstm or lstm."""
+    scene: str = "all"
+    """Leave-one-out scene (eth, hotel, univ, zara1, zara2), ``sdd``, or ``all`` (every ETH/UCY recording)."""
+    epochs: int = 5
+    """Maximum number of epochs."""
+    seed: int = 0
+    """Seed of torch and of the numpy generator that shuffles and rotates batches."""
+    data: str = ""
+    """Data root holding ``eth_ucy/`` and ``sdd/`` (default: ``$CROSSING_DATA`` or ``<repo>/../shared/data``)."""
+    out: str = ""
+    """Checkpoint path (default ``predictors/weights/<model>_<scene>.pt``)."""
+    lr: float = 1e-3
+    """Adam learning rate."""
+    batch_peds: int = 256
+    """Pedestrian budget per batch (whole windows)."""
+    train_fraction: float = 1.0
+    """Fraction of training windows drawn (without replacement) each epoch, to fit a CPU budget."""
+    max_minutes: float = 0.0
+    """Wall-clock budget for the whole run (0 = none); training stops after the epoch that exceeds it."""
+    fov_deg: float = 120.0
+    """Field of view of S-CGRU's pooling sector, degrees."""
+    grad_clip: float = 1.0
+    """Gradient-norm clip."""
+    threads: int = 1
+    """torch intra-op threads (1 on the shared 2-core machine)."""
+    cv_residual: int = 0
+    """1: learned models predict a correction to the last displacement (constant-velocity prior)."""
+    teacher_forcing: int = 0
+    """1: feed the ground truth back during the future steps (Social-LSTM); 0: feed the predicted means."""
+
+
+def _union_split(root: Path, split: str) -> Windows:
+    files: dict[str, Path] = {}
+    for s in SCENES:
+        for f in split_files(root, s, split):
+            files.setdefault(f.name, f)
+    return load_files(list(files.values()))
+
+
+def load_training_data(root: Path, scene: str) -> tuple[Windows, Windows]:
+    """Train and val windows of ``scene`` (``all`` = union of every recording's train/val parts)."""
+    if scene == "all":
+        return _union_split(root, "train"), _union_split(root, "val")
+    return load_files(split_files(root, scene, "train")), load_files(split_files(root, scene, "val"))
+
+
+@torch.no_grad()
+def most_likely_ade(model: SocialRecurrent, w: Windows, batch_peds: int = 2048) -> tuple[float, float]:
+    """Mean ADE and FDE of the most-likely prediction over all pedestrians of ``w``."""
+    model.eval()
+    ade, fde, n = 0.0, 0.0, 0
+    for b in iterate_batches(w, batch_peds):
+        err = (model.predict(b.obs, b.seq_start_end) - b.fut).norm(dim=-1)
+        ade += float(err.mean(dim=1).sum())
+        fde += float(err[:, -1].sum())
+        n += err.shape[0]
+    return ade / max(n, 1), fde / max(n, 1)
+
+
+def save_checkpoint(path: Path, model: SocialRecurrent, meta: dict[str, object]) -> None:
+    """Write the checkpoint atomically (temp file + ``os.replace``); weights in float16."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {
+        "format": CHECKPOINT_FORMAT,
+        "config": model.config.to_dict(),
+        "state_dict": {k: v.detach().to(torch.float16).clone() for k, v in model.state_dict().items()},
+        "meta": json.dumps(meta),
+    }
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+    os.close(fd)
+    try:
+        torch.save(payload, tmp)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def load_model(path: str | Path) -> SocialRecurrent:
+    """Load a checkpoint written by :func:`save_checkpoint` with ``weights_only=True``.
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: the file is corrupt, not a predictor checkpoint, or its weights do not fit its config;
+            the message names the file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"predictor checkpoint not found: {path}")
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:  # noqa: BLE001 - torch raises UnpicklingError, RuntimeError, EOFError...
+        raise ValueError(f"{path}: not a readable torch checkpoint ({type(exc).__name__}: {exc})") from exc
+    if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
+        raise ValueError(f"{path}: not a crossing-env trajectory predictor checkpoint (field 'format')")
+    cfg_dict = payload.get("config")
+    known = {f.name for f in fields(ModelConfig)}
+    if not isinstance(cfg_dict, dict) or set(cfg_dict) - known:
+        raise ValueError(f"{path}: field 'config' must hold ModelConfig fields {sorted(known)}, got {cfg_dict!r}")
+    try:
+        config = ModelConfig(**cfg_dict)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{path}: invalid field 'config': {exc}") from exc
+    model = SocialRecurrent(config)
+    state = payload.get("state_dict")
+    if not isinstance(state, dict):
+        raise ValueError(f"{path}: field 'state_dict' missing or not a dict")
+    try:
+        model.load_state_dict({k: v.float() for k, v in state.items()}, strict=True)
+    except (RuntimeError, AttributeError) as exc:
+        raise ValueError(f"{path}: weights do not match architecture {config.kind!r}: {exc}") from exc
+    model.eval()
+    return model
+
+
+def checkpoint_meta(path: str | Path) -> dict[str, object]:
+    """Training metadata stored in a checkpoint (budget, validation scores)."""
+    payload = torch.load(Path(path), map_location="cpu", weights_only=True)
+    return json.loads(payload.get("meta", "{}"))
+
+
+def train(cfg: TrainConfig) -> Path:
+    """Train one model; return the checkpoint path. Model selection on val ADE only."""
+    if cfg.model not in MODEL_KINDS:
+        raise ValueError(f"--model must be one of {MODEL_KINDS}, got {cfg.model!r}")
+    if cfg.scene not in (*SCENES, "sdd", "all"):
+        raise ValueError(f"--scene must be one of {(*SCENES, 'sdd', 'all')}, got {cfg.scene!r}")
+    if cfg.epochs < 1:
+        raise ValueError(f"--epochs must be >= 1, got {cfg.epochs}")
+    if not 0.0 < cfg.train_fraction <= 1.0:
+        raise ValueError(f"--train-fraction must be in (0, 1], got {cfg.train_fraction}")
+    torch.set_num_threads(cfg.threads)
+    torch.manual_seed(cfg.seed)
+    rng = np.random.default_rng(cfg.seed)
+    root = Path(cfg.data) if cfg.data else default_data_root()
+    train_w, val_w = load_training_data(root, cfg.scene)
+    out = Path(cfg.out) if cfg.out else WEIGHTS_DIR / f"{cfg.model}_{cfg.scene}.pt"
+    model = SocialRecurrent(replace(default_config(cfg.model, cfg.fov_deg), cv_residual=bool(cfg.cv_residual)))
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    best = (float("inf"), float("inf"))
+    best_epoch, t0, windows_seen = -1, time.time(), 0
+    history: list[dict[str, float]] = []
+    n_take = max(1, round(cfg.train_fraction * train_w.num_windows))
+    for epoch in range(cfg.epochs):
+        model.train()
+        sub = train_w.subset(np.sort(rng.choice(train_w.num_windows, n_take, replace=False)))
+        batches = list(iterate_batches(sub, cfg.batch_peds, rng=rng, rotate=True))
+        total = 0.0
+        bar = tqdm(batches, desc=f"{cfg.model} {cfg.scene} epoch {epoch + 1}/{cfg.epochs}", leave=False)
+        for b in bar:
+            loss = model.loss(b.obs, b.fut, b.seq_start_end, bool(cfg.teacher_forcing))
+            opt.zero_grad()
+            loss.backward()
+            torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
+            opt.step()
+            total += loss.item()
+            bar.set_postfix(nll=f"{loss.item():.3f}")
+        windows_seen += sub.num_windows
+        val = most_likely_ade(model, val_w)
+        history.append({"epoch": epoch + 1, "train_nll": total / len(batches), "val_ade": val[0], "val_fde": val[1]})
+        print(f"epoch {epoch + 1}: train nll {total / len(batches):.3f}  val ADE/FDE {val[0]:.3f}/{val[1]:.3f}")
+        if val[0] < best[0]:
+            best, best_epoch = val, epoch + 1
+            meta = {
+                "scene": cfg.scene,
+                "seed": cfg.seed,
+                "best_epoch": best_epoch,
+                "val_ade": val[0],
+                "val_fde": val[1],
+                "train_windows": train_w.num_windows,
+                "train_fraction": cfg.train_fraction,
+                "lr": cfg.lr,
+                "batch_peds": cfg.batch_peds,
+                "teacher_forcing": cfg.teacher_forcing,
+            }
+            save_checkpoint(out, model, meta)
+        if cfg.max_minutes and time.time() - t0 > 60.0 * cfg.max_minutes:
+            print(f"time budget of {cfg.max_minutes} min reached after epoch {epoch + 1}")
+            break
+    # Record the full budget in the selected checkpoint.
+    final = load_model(out)
+    meta = checkpoint_meta(out)
+    meta.update(
+        {
+            "epochs_run": len(history),
+            "windows_seen": windows_seen,
+            "wall_s": round(time.time() - t0, 1),
+            "threads": cfg.threads,
+            "history": history,
+        }
+    )
+    save_checkpoint(out, final, meta)
+    print(f"saved {out} (best epoch {best_epoch}, val ADE/FDE {best[0]:.3f}/{best[1]:.3f})")
+    return out
+
+
+def parse_args(argv: list[str] | None = None) -> TrainConfig:
+    """Parse command-line arguments into a :class:`TrainConfig`."""
+    p = argparse.ArgumentParser(prog="crossing-train", description=__doc__.splitlines()[0])
+    d = TrainConfig()
+    for f in fields(TrainConfig):
+        p.add_argument(f"--{f.name.replace('_', '-')}", type=type(getattr(d, f.name)), default=getattr(d, f.name))
+    return TrainConfig(**vars(p.parse_args(argv)))
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Console entry point; returns a non-zero exit status on bad input."""
+    cfg = parse_args(argv)
+    try:
+        train(cfg)
+    except (ValueError, FileNotFoundError) as exc:
+        print(f"crossing-train: error: {exc}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
