@@ -40,4 +40,4 @@ def idm_acceleration(
     with np.errstate(invalid="ignore"):
         interaction = np.where(np.isfinite(gap), (s_star / gap) ** 2, 0.0)
     acc = a * (free - interaction)
-    return np.clip(acc, -params.max_deceleration, params.max_acceleration)
+    return np.minimum(np.maximum(acc, -params.max_deceleration), params.max_acceleration)

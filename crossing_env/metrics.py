@@ -124,22 +124,20 @@ def _slabs(q: np.ndarray, u: np.ndarray, lo: ArrayLike, hi: ArrayLike) -> tuple[
 
 
 def _box_disc_ttc(q: np.ndarray, u: np.ndarray, half: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """Kernel of `box_circle_ttc` in the box frame (q, u, half: (..., 2); r: (...)); caller sets errstate."""
+    """Kernel of `box_circle_ttc` in the box frame (q, u, half: (n, 2); r: (n,)); caller sets errstate."""
     grown = half + r[..., None]
     t_in, t_out = _slabs(q, u, -grown, grown)
     hit = (t_in <= t_out) & (t_out >= 0.0)
     t0 = np.maximum(t_in, 0.0)
-    out = np.where(hit, t0, _INF)
+    t0[~hit] = _INF
     entry = q + u * t0[..., None]
     side = np.abs(entry) > half
     corner = hit & side[..., 0] & side[..., 1]
-    if corner.any():  # entry point in a corner square: the true contact is with the corner's quarter disc
+    if np.count_nonzero(corner):  # entry in a corner square: the contact is with that corner's quarter disc
         e = entry[corner]
         h = np.broadcast_to(half, entry.shape)[corner]
-        rc = np.broadcast_to(r, t0.shape)[corner]
-        uc = np.broadcast_to(u, entry.shape)[corner]
-        out[corner] = t0[corner] + _disc_ttc(e - np.copysign(h, e), uc, rc)
-    return out
+        t0[corner] += _disc_ttc(e - np.copysign(h, e), u[corner], r[corner])
+    return t0
 
 
 def box_circle_ttc(
@@ -173,14 +171,17 @@ def box_circle_ttc(
     """
     q = np.asarray(circle_position, dtype=np.float64) - np.asarray(box_position, dtype=np.float64)
     u = np.asarray(circle_velocity, dtype=np.float64) - np.asarray(box_velocity, dtype=np.float64)
-    half = 0.5 * np.stack(
-        np.broadcast_arrays(np.asarray(length, np.float64), np.asarray(width, np.float64)), -1
-    )
-    q, u = np.broadcast_arrays(q, u)
-    r = np.broadcast_to(np.asarray(radius, dtype=np.float64), q.shape[:-1])
+    lw = np.stack(np.broadcast_arrays(np.asarray(length, np.float64), np.asarray(width, np.float64)), -1)
+    r = np.asarray(radius, dtype=np.float64)
+    if q.shape[-1:] != (2,) or u.shape[-1:] != (2,):
+        raise ValueError(f"box_circle_ttc: positions and velocities must end in 2, got {q.shape}, {u.shape}")
+    shape = np.broadcast_shapes(q.shape[:-1], u.shape[:-1], lw.shape[:-1], r.shape)
+    q2 = np.broadcast_to(q, (*shape, 2)).reshape(-1, 2)
+    u2 = np.broadcast_to(u, (*shape, 2)).reshape(-1, 2)
+    half = 0.5 * np.broadcast_to(lw, (*shape, 2)).reshape(-1, 2)
     with np.errstate(divide="ignore", invalid="ignore"):
-        out = _box_disc_ttc(q, u, half, r)
-    return _scalar_or_array(out)
+        out = _box_disc_ttc(q2, u2, half, np.broadcast_to(r, shape).reshape(-1))
+    return _scalar_or_array(out.reshape(shape))
 
 
 def _box_sdf(q: np.ndarray, hx: ArrayLike, hy: ArrayLike) -> np.ndarray:
@@ -271,6 +272,15 @@ def crossing_drac(speed: ArrayLike, distance: ArrayLike, clear_time: ArrayLike) 
     out = np.where(v * t <= 2.0 * d, sumo, stop)
     out = np.where(arrives_early & (v > 0.0), out, 0.0)
     return _scalar_or_array(out)
+
+
+def _crossing_drac_scalar(speed: float, distance: float, clear_time: float) -> float:
+    """Scalar `crossing_drac` for the per-step hot path (same piecewise definition)."""
+    if speed <= 0.0 or speed * clear_time <= distance:
+        return 0.0
+    if speed * clear_time <= 2.0 * distance:
+        return 2.0 * (speed - distance / clear_time) / clear_time
+    return 0.5 * speed * speed / distance if distance > 0.0 else _INF
 
 
 def rect_occupancy_interval(
@@ -510,7 +520,7 @@ class _PedTable:
         """Row index of every id, adding rows for ids seen for the first time."""
         n = self.ids.shape[0]
         pos = np.searchsorted(self.ids, ids)
-        if n == 0 or (self.ids[np.minimum(pos, n - 1)] != ids).any():
+        if n == 0 or np.count_nonzero(self.ids[np.minimum(pos, n - 1)] != ids):
             self._add(ids)
             pos = np.searchsorted(self.ids, ids)
         return pos
@@ -544,8 +554,10 @@ class EpisodeMetrics:
     - TTC to pedestrians: exact box–disc TTC (`box_circle_ttc`), not evaluated while the ego is stopped
       (nuPlan). TTC to vehicles: following TTC to vehicles ahead whose footprint overlaps the ego's
       laterally (same lane); vehicles behind the ego and oncoming traffic are not scored.
-    - Conflict area (CA) = `GroundTruth.conflict_area` (ego lane × crossing); a body occupies it when its
-      footprint overlaps the rectangle. Entry and exit times have the resolution of one step.
+    - Conflict area (CA) = `GroundTruth.conflict_area` (ego lane × crossing). The ego occupies it when its
+      box overlaps the rectangle, a pedestrian when its disc's bounding square does (conservative by at
+      most r·(√2 − 1) ≈ 0.12 m at the rectangle's corners; it shares the slab test with the DRAC).
+      Entry and exit times have the resolution of one step.
     - PET: at each ego entry, one pedestrian-first PET per pedestrian that left the CA since the ego's
       previous entry; at each pedestrian entry, one ego-first PET if the ego left the CA since that
       pedestrian's previous entry. Entering while the other is inside counts as a simultaneous occupancy.
@@ -623,7 +635,7 @@ class EpisodeMetrics:
         self._waits: list[float] = []
         self._peds = _PedTable()
         self._ca: ConflictArea | None = None
-        self._ca_arrays: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] = ()  # type: ignore[assignment]
+        self._ca_arrays: tuple[np.ndarray, np.ndarray] = ()  # type: ignore[assignment]
         self._size: tuple[float, float] = (math.nan, math.nan)
         self._half: np.ndarray | None = None
 
@@ -633,6 +645,8 @@ class EpisodeMetrics:
         """Add one ground-truth snapshot (call once per environment step, in time order)."""
         cfg = self.config
         t = float(gt.time)
+        if t < self._last_t:
+            raise ValueError(f"EpisodeMetrics.update: GroundTruth.time went backwards ({t} < {self._last_t})")
         ca = gt.conflict_area
         ego_p = gt.ego_position
         ego_v = gt.ego_velocity
@@ -704,27 +718,32 @@ class EpisodeMetrics:
 
     def _update_vehicles(self, gt: GroundTruth, evx: float, half: np.ndarray) -> None:
         """Following TTC / DRAC against vehicles ahead in the ego's lane, and box–box separation."""
-        pos = gt.vehicle_positions
-        sizes = gt.vehicle_sizes
-        q = pos - gt.ego_position
-        reach = half + 0.5 * sizes  # half extents of the Minkowski sum of both boxes
+        q = gt.vehicle_positions - gt.ego_position
+        reach = half + 0.5 * gt.vehicle_sizes  # half extents of the Minkowski sum of both boxes
         d = np.abs(q) - reach
-        sep = np.hypot(np.maximum(d[:, 0], 0.0), np.maximum(d[:, 1], 0.0)) + np.minimum(d.max(axis=1), 0.0)
-        self._min_sep_veh = min(self._min_sep_veh, float(sep.min()))
-        ahead = (q[:, 0] > 0.0) & (d[:, 1] < 0.0)  # in front and overlapping laterally: same lane
-        if ahead.any():
-            gap = q[ahead, 0] - reach[ahead, 0]
+        dx, dy = d[:, 0], d[:, 1]
+        sep = np.hypot(np.maximum(dx, 0.0), np.maximum(dy, 0.0)) + np.minimum(np.maximum(dx, dy), 0.0)
+        min_sep = float(sep.min())
+        if min_sep < self._min_sep_veh:
+            self._min_sep_veh = min_sep
+        ahead = (q[:, 0] > 0.0) & (dy < 0.0)  # in front and overlapping laterally: same lane
+        if np.count_nonzero(ahead):
+            gap = dx[ahead]  # bumper-to-bumper distance (q_x > 0)
             closing = evx - gt.vehicle_velocities[ahead, 0]
-            self._min_ttc_veh = min(self._min_ttc_veh, float(np.min(following_ttc(gap, closing))))
-            self._max_drac_follow = max(self._max_drac_follow, float(np.max(following_drac(gap, closing))))
+            fast = closing > 0.0
+            if np.count_nonzero(fast):
+                gap, closing = gap[fast], closing[fast]
+                with np.errstate(divide="ignore"):
+                    ttc = float((np.maximum(gap, 0.0) / closing).min())
+                    drac = float((0.5 * closing * closing / np.maximum(gap, 0.0)).max())
+                self._min_ttc_veh = min(self._min_ttc_veh, ttc)
+                self._max_drac_follow = max(self._max_drac_follow, drac)
 
-    def _conflict_arrays(self, ca: ConflictArea) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(centre, half size, low corner, high corner) of the conflict area, cached across steps."""
+    def _conflict_arrays(self, ca: ConflictArea) -> tuple[np.ndarray, np.ndarray]:
+        """Low and high corners of the conflict area as arrays, cached across steps."""
         if ca != self._ca:
             self._ca = ca
-            lo = np.array([ca.x_min, ca.y_min])
-            hi = np.array([ca.x_max, ca.y_max])
-            self._ca_arrays = (0.5 * (lo + hi), 0.5 * (hi - lo), lo, hi)
+            self._ca_arrays = (np.array([ca.x_min, ca.y_min]), np.array([ca.x_max, ca.y_max]))
         return self._ca_arrays
 
     def _update_pedestrians(
@@ -747,7 +766,7 @@ class EpisodeMetrics:
         pp: FloatArray = gt.pedestrian_positions
         pv: FloatArray = gt.pedestrian_velocities
         rad = gt.pedestrian_radii
-        ca_centre, ca_half, ca_lo, ca_hi = self._conflict_arrays(ca)
+        ca_lo, ca_hi = self._conflict_arrays(ca)
         with np.errstate(divide="ignore", invalid="ignore"):
             # Separation: signed distance from each disc to the ego box.
             q = pp - gt.ego_position
@@ -768,31 +787,31 @@ class EpisodeMetrics:
                     self._serious_time += dt
                 if min_ttc < cfg.encounter_ttc:
                     self._encounter_time += dt
+            # Conflict-area occupancy interval of each disc's bounding square (constant velocity).
+            margin = rad[:, None]
+            t_in, t_out = _slabs(pp, pv, ca_lo - margin, ca_hi + margin)
+            ped_in = (t_in <= 0.0) & (t_out >= 0.0)
             # Crossing DRAC: pedestrians holding the conflict area when the ego front would reach it.
             d_b = ca.x_min - front
             evx = float(gt.ego_velocity[0])
             if d_b > 0.0 and evx > 0.0:
-                margin = rad[:, None]
-                t_in, t_out = _slabs(pp, pv, ca_lo - margin, ca_hi + margin)
                 t_ego = d_b / evx
                 first = (t_in <= t_ego) & (t_out > t_ego)
-                if first.any():
-                    drac = float(np.max(crossing_drac(evx, d_b, t_out[first])))
+                if np.count_nonzero(first):
+                    # crossing_drac is non-decreasing in t_A, so the latest exit gives the maximum.
+                    drac = _crossing_drac_scalar(evx, d_b, float(t_out[first].max()))
                     if drac > self._max_drac_cross:
                         self._max_drac_cross = drac
-            # Conflict-area occupancy: the disc overlaps the rectangle.
-            g = np.maximum(np.abs(pp - ca_centre) - ca_half, 0.0)
-            ped_in = g[:, 0] * g[:, 0] + g[:, 1] * g[:, 1] < rad * rad
 
         was_in = tab.in_ca[rows]
-        if ego_entered or (ped_in != was_in).any():
+        if ego_entered or np.count_nonzero(ped_in != was_in):
             self._update_pet(t, rows, ped_in, was_in, ego_in, ego_entered, prev_ego_entry)
 
         # Pedestrian waiting times (only on state changes).
         states = gt.pedestrian_states
         prev = tab.prev_state[rows]
         changed = states != prev
-        if changed.any():
+        if np.count_nonzero(changed):
             self._update_waits(t, rows, states, prev, changed)
 
         self._update_yielding(gt, rows, front, speed)
@@ -815,11 +834,11 @@ class EpisodeMetrics:
             self._simultaneous += int(np.count_nonzero(ped_in))  # pedestrians inside as the ego enters
             last_exit = tab.last_exit[rows]
             pair = ~ped_in & (last_exit > prev_ego_entry)
-            if pair.any():
+            if np.count_nonzero(pair):
                 self._pets_ped_first.extend((t - last_exit[pair]).tolist())
         # Ego first: a pedestrian enters after the ego left since that pedestrian's previous entry.
         entered = ped_in & ~was_in
-        if entered.any():
+        if np.count_nonzero(entered):
             if ego_in and not ego_entered:
                 self._simultaneous += int(np.count_nonzero(entered))
             elif not ego_in:
@@ -835,7 +854,7 @@ class EpisodeMetrics:
         tab = self._peds
         tab.wait_start[rows[changed & (states == _WAITING)]] = t
         step_off = changed & (states == _CROSSING) & ((prev == _WAITING) | (prev == _APPROACHING))
-        if step_off.any():
+        if np.count_nonzero(step_off):
             r_off = rows[step_off]
             ws = tab.wait_start[r_off]
             self._waits.extend(np.where(np.isnan(ws), 0.0, t - ws).tolist())
@@ -855,7 +874,8 @@ class EpisodeMetrics:
         open_ = status == _OPEN
         dist = ca.stop_line_x - front
         can_open = dist > speed * speed / (2.0 * cfg.yield_deceleration)
-        if not open_.any() and not (can_open and ((gt.on_crossing | gt.waiting) & (status == 0)).any()):
+        candidates = can_open and np.count_nonzero((gt.on_crossing | gt.waiting) & (status == 0))
+        if not candidates and not np.count_nonzero(open_):
             return  # nothing open and nobody who could open an obligation now
 
         px = gt.pedestrian_positions[:, 0]
@@ -873,7 +893,7 @@ class EpisodeMetrics:
         # Declined offers: the ego stands just before the stop line while the pedestrian keeps waiting.
         if speed <= cfg.offer_stop_speed and 0.0 <= dist <= cfg.offer_distance:
             offering = (status == _OPEN) & waiting
-            if offering.any():
+            if np.count_nonzero(offering):
                 r_off = rows[offering]
                 tab.offer_time[r_off] += self.dt
                 status[offering] = np.where(

@@ -393,11 +393,13 @@ class PedestrianPopulation:
         y = self.position[:, 1]
         return (y > self.geometry.kerb_south) & (y < self.geometry.kerb_north) & self.active
 
-    def legal(self) -> np.ndarray:
-        """(n,) crossing legally: on the zebra and not against red, or not on the road at all."""
-        kind = self.scenario.crossing.kind
-        on_road = self.on_road()
-        if kind == "none":
+    def legal(self, on_road: np.ndarray | None = None, on_crossing: np.ndarray | None = None) -> np.ndarray:
+        """(n,) crossing legally: on the zebra and not against red, or not on the road at all.
+
+        `on_road` / `on_crossing` may be passed when the caller already has them for this step.
+        """
+        on_road = self.on_road() if on_road is None else on_road
+        if self.scenario.crossing.kind == "none":
             return ~on_road
-        ok = self.on_crossing() & ~self.crossed_on_red & ~self.jaywalker
-        return ~on_road | ok
+        on_crossing = self.on_crossing() if on_crossing is None else on_crossing
+        return ~on_road | (on_crossing & ~self.crossed_on_red & ~self.jaywalker)

@@ -22,6 +22,16 @@ from crossing_env.config import SocialForceConfig
 from crossing_env.types import BoolArray, FloatArray
 
 
+_MIN_EXPONENT = -30.0
+"""Exponents are clipped here: exp(−30) ≈ 1e-13 is negligible, and it keeps far-apart pairs out of the
+subnormal range, where floating-point arithmetic is orders of magnitude slower."""
+
+
+def _norm(v: FloatArray) -> FloatArray:
+    """Euclidean norm over the last axis of (..., 2) arrays (cheaper than np.linalg.norm for small arrays)."""
+    return np.sqrt(v[..., 0] * v[..., 0] + v[..., 1] * v[..., 1])
+
+
 def _anisotropy(direction: FloatArray, normal_from_other: FloatArray, lam: float) -> FloatArray:
     """Weight of an interaction given the walking direction and the unit vector from the other body."""
     cos_phi = -np.sum(direction * normal_from_other, axis=-1)
@@ -61,22 +71,22 @@ def social_force_acceleration(
     if n == 0:
         return np.zeros((0, 2))
     to_goal = goals - positions
-    dist_goal = np.linalg.norm(to_goal, axis=1, keepdims=True)
+    dist_goal = _norm(to_goal)[:, None]
     e = np.divide(to_goal, dist_goal, out=np.zeros_like(to_goal), where=dist_goal > 1e-6)
     # Slow down on arrival so pedestrians stop at waypoints instead of orbiting them.
     v0 = desired_speeds[:, None] * np.minimum(1.0, dist_goal / 0.5)
     acc = (v0 * e - velocities) / params.relaxation_time
-    speed = np.linalg.norm(velocities, axis=1, keepdims=True)
+    speed = _norm(velocities)[:, None]
     heading = np.where(speed > 0.05, velocities / np.maximum(speed, 1e-9), e)
 
     k_p = params.ped_intensity if ped_intensity is None else np.asarray(ped_intensity)[:, None]
     if n > 1:
         diff = positions[:, None, :] - positions[None, :, :]  # from j to i
-        dist = np.linalg.norm(diff, axis=2)
+        dist = _norm(diff)
         np.fill_diagonal(dist, np.inf)
         normal = diff / np.maximum(dist, 1e-9)[:, :, None]
         overlap = radii[:, None] + radii[None, :] - dist
-        mag = params.base_strength * np.exp(overlap / params.ped_range)
+        mag = params.base_strength * np.exp(np.maximum(overlap / params.ped_range, _MIN_EXPONENT))
         w = _anisotropy(heading[:, None, :], normal, params.anisotropy)
         acc += k_p * np.sum((w * mag)[:, :, None] * normal, axis=1)
 
@@ -85,9 +95,9 @@ def social_force_acceleration(
         cx = np.clip(px, vehicle_boxes[None, :, 0], vehicle_boxes[None, :, 2])
         cy = np.clip(py, vehicle_boxes[None, :, 1], vehicle_boxes[None, :, 3])
         diff = np.stack([px - cx, py - cy], axis=2)
-        dist = np.linalg.norm(diff, axis=2)
+        dist = _norm(diff)
         normal = diff / np.maximum(dist, 1e-9)[:, :, None]
-        mag = params.base_strength * np.exp((radii[:, None] - dist) / params.vehicle_range)
+        mag = params.base_strength * np.exp(np.maximum((radii[:, None] - dist) / params.vehicle_range, _MIN_EXPONENT))
         mag = np.where(dist > 1e-9, mag, 0.0)  # inside the box: contact physics takes over
         w = _anisotropy(heading[:, None, :], normal, params.anisotropy)
         acc += params.vehicle_intensity * np.sum((w * mag)[:, :, None] * normal, axis=1)
@@ -97,7 +107,7 @@ def social_force_acceleration(
     below = y < 0.5 * (south + north)
     # Distance from the body edge to the kerb it must not cross (negative once it steps over).
     d = np.where(below, south - (y + r), (y - r) - north)
-    push = params.kerb_strength * np.exp(-d / params.kerb_range)
+    push = params.kerb_strength * np.exp(np.maximum(-d / params.kerb_range, _MIN_EXPONENT))
     push = np.where(stay_on_sidewalk, np.minimum(push, 50.0), 0.0)
     acc[:, 1] += np.where(below, -push, push)
     return acc
@@ -105,6 +115,6 @@ def social_force_acceleration(
 
 def limit_speed(velocities: FloatArray, max_speeds: FloatArray) -> FloatArray:
     """Scale velocities down to at most `max_speeds` (P,) m/s."""
-    speed = np.linalg.norm(velocities, axis=1)
+    speed = _norm(velocities)
     scale = np.minimum(1.0, max_speeds / np.maximum(speed, 1e-9))
     return velocities * scale[:, None]

@@ -67,17 +67,23 @@ class Traffic:
 
     def positions(self) -> FloatArray:
         """(n, 2) centres."""
-        return np.stack([self.x, self.y], axis=1)
+        out = np.empty((self.capacity, 2))
+        out[:, 0], out[:, 1] = self.x, self.y
+        return out
 
     def velocities(self) -> FloatArray:
         """(n, 2) velocities."""
-        return np.stack([self.speed * self.direction, np.zeros(self.capacity)], axis=1)
+        out = np.zeros((self.capacity, 2))
+        out[:, 0] = self.speed * self.direction
+        return out
 
     def boxes(self, mask: np.ndarray | None = None) -> FloatArray:
         """(k, 4) axis-aligned boxes [x_min, y_min, x_max, y_max] of the selected (default: active) slots."""
         m = self.active if mask is None else mask
         x, y, hl, hw = self.x[m], self.y[m], self.length[m] / 2, self.width[m] / 2
-        return np.stack([x - hl, y - hw, x + hl, y + hw], axis=1)
+        out = np.empty((x.size, 4))
+        out[:, 0], out[:, 1], out[:, 2], out[:, 3] = x - hl, y - hw, x + hl, y + hw
+        return out
 
     # ------------------------------------------------------------------ spawning
     def spawn(self, spawn: VehicleSpawn) -> int | None:
@@ -153,8 +159,8 @@ class Traffic:
         lead_speed = np.where(np.isfinite(gap), self.speed[lead], 0.0)
         # Pedestrians on the carriageway in the car's lane ahead.
         if ped_positions.shape[0]:
-            lane_idx = np.clip((ped_positions[:, 1] / self.geometry.road.lane_width).astype(np.int64),
-                               0, self.geometry.road.num_lanes - 1)
+            lane_idx = np.minimum(np.maximum((ped_positions[:, 1] / self.geometry.road.lane_width).astype(np.int64), 0),
+                                  self.geometry.road.num_lanes - 1)
             ped_s = ped_positions[None, :, 0] * d[:, None]
             dist = ped_s - s[:, None] - half[:, None] - 0.5
             hit = (lane_idx[None, :] == self.lane[:, None]) & (dist > -half[:, None]) & (dist < PEDESTRIAN_LOOKAHEAD)

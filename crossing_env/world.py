@@ -55,6 +55,17 @@ class World:
         self.background_contacts = 0
         self._ego_vehicle_contact = np.zeros(self.traffic.capacity, dtype=bool)
         self.conflict_area = self.geometry.conflict_area(scenario.ego.lane)
+        self._refresh_masks()
+
+    def _refresh_masks(self) -> None:
+        """Per-pedestrian geometric masks, computed once per step and shared by traffic, observation and truth."""
+        peds = self.pedestrians
+        self.ped_on_road = peds.on_road()
+        """(n,) active and on the carriageway."""
+        self.ped_on_crossing = peds.on_crossing()
+        """(n,) active and inside the zebra area."""
+        self.ped_legal = peds.legal(self.ped_on_road, self.ped_on_crossing)
+        """(n,) not on the road, or crossing legally."""
 
     # ------------------------------------------------------------------ stepping
     def _car_snapshot(self) -> CarSnapshot:
@@ -72,14 +83,14 @@ class World:
         green = self.geometry.pedestrian_green(self.time)
         peds, tr = self.pedestrians, self.traffic
         peds.step(self.time, self._car_snapshot(), green)
-        # Background drivers: obstacles are pedestrians on the road, at the kerb, or on the zebra.
+        # Background drivers: obstacles are pedestrians on the road, at the kerb, or on the zebra
+        # (positions have not moved since the masks were refreshed at the end of the last step).
         act = peds.active
-        on_road = peds.on_road()
         near_zebra = np.abs(peds.crossing_x - self.scenario.crossing.position) < self.scenario.crossing.width
         waiting = (peds.state == WAITING) & near_zebra & act & ~peds.jaywalker
-        on_zebra = peds.on_crossing()
         acc = tr.background_accelerations(
-            peds.position[on_road], peds.position[waiting], peds.position[on_zebra], green is True,
+            peds.position[self.ped_on_road & act], peds.position[waiting], peds.position[self.ped_on_crossing & act],
+            green is True,
         )
         acc[0] = ego_acceleration
         start_positions = tr.positions()
@@ -93,6 +104,7 @@ class World:
         )
         peds.position = np.where(act[:, None], pos, peds.position)
         peds.velocity = np.where(act[:, None], pvel, peds.velocity)
+        self._refresh_masks()
         self._record_contacts(contacts)
         self._check_ego_vehicle_overlap()
         peds.record_history()
@@ -108,7 +120,7 @@ class World:
 
     def _record_contacts(self, contacts: list) -> None:
         self.collisions = []
-        legal = self.pedestrians.legal()
+        legal = self.ped_legal
         for c in contacts:
             if c.vehicle_slot != 0:
                 self.background_contacts += 1
@@ -120,21 +132,24 @@ class World:
             ))
 
     def _check_ego_vehicle_overlap(self) -> None:
-        """Kinematic bodies never collide in pymunk, so ego–car contact is a box-overlap test."""
+        """Kinematic bodies never collide in pymunk, so ego–car contact is an overlap test along the lane.
+
+        Vehicles keep their lanes and parked cars stand off the carriageway, so only cars in the ego's lane
+        can touch it, and for those the boxes overlap exactly when their x-intervals do.
+        """
         tr = self.traffic
-        boxes = tr.boxes(np.ones(tr.capacity, dtype=bool))
-        ego = boxes[0]
-        overlap = (
-            tr.active & (boxes[:, 0] < ego[2]) & (boxes[:, 2] > ego[0]) & (boxes[:, 1] < ego[3]) & (boxes[:, 3] > ego[1])
-        )
+        overlap = tr.active & (tr.lane == tr.lane[0]) & ~tr.parked
+        overlap &= np.abs(tr.x - tr.x[0]) < (tr.length + tr.length[0]) / 2
         overlap[0] = False
         new = overlap & ~self._ego_vehicle_contact
         self._ego_vehicle_contact = overlap
+        if not new.any():
+            return
         for i in np.flatnonzero(new):
             rel = abs(tr.speed[0] - tr.speed[i] * tr.direction[i])
             self.collisions.append(CollisionEvent(
                 time=round(self.time, 9), kind="vehicle", other_id=int(tr.ids[i]),
-                position=(float((ego[0] + ego[2]) / 2), float((ego[1] + ego[3]) / 2)),
+                position=(float((tr.x[0] + tr.x[i]) / 2), float(tr.y[0])),
                 relative_speed=float(rel), compliant=True,
             ))
 
@@ -159,17 +174,17 @@ class World:
             vehicle_ids=tr.ids[bg].copy(),
             vehicle_positions=tr.positions()[bg],
             vehicle_velocities=tr.velocities()[bg],
-            vehicle_sizes=np.stack([tr.length[bg], tr.width[bg]], axis=1),
+            vehicle_sizes=np.column_stack((tr.length[bg], tr.width[bg])),
             pedestrian_ids=peds.ids[act].copy(),
             pedestrian_positions=peds.position[act].copy(),
             pedestrian_velocities=peds.velocity[act].copy(),
             pedestrian_radii=peds.radius[act].copy(),
             pedestrian_states=peds.state[act].copy(),
             intends_to_cross=peds.intends[act].copy(),
-            on_crossing=peds.on_crossing()[act],
-            on_road=peds.on_road()[act],
+            on_crossing=self.ped_on_crossing[act],
+            on_road=self.ped_on_road[act],
             waiting=(peds.state[act] == WAITING),
-            legal=peds.legal()[act],
+            legal=self.ped_legal[act],
             conflict_area=self.conflict_area,
             signal_pedestrian_green=self.geometry.pedestrian_green(self.time),
             collisions=tuple(self.collisions),

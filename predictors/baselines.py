@@ -53,7 +53,9 @@ class KalmanConfig:
     """Prior standard deviation of the initial velocity, metres per step."""
 
 
-def _kalman_matrices(cfg: KalmanConfig, dtype: torch.dtype) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+def _kalman_matrices(
+    cfg: KalmanConfig, dtype: torch.dtype
+) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     f = torch.eye(4, dtype=dtype)
     f[0, 2] = f[1, 3] = 1.0
     q1 = torch.tensor([[0.25, 0.5], [0.5, 1.0]], dtype=dtype) * cfg.accel_std**2
@@ -65,9 +67,7 @@ def _kalman_matrices(cfg: KalmanConfig, dtype: torch.dtype) -> tuple[torch.Tenso
     return f, q, h
 
 
-def kalman_filter(
-    obs: torch.Tensor, cfg: KalmanConfig = KalmanConfig()
-) -> tuple[torch.Tensor, torch.Tensor]:
+def kalman_filter(obs: torch.Tensor, cfg: KalmanConfig = KalmanConfig()) -> tuple[torch.Tensor, torch.Tensor]:
     """Filter the observed positions; return the final state mean ``(N, 4)`` and covariance ``(N, 4, 4)``."""
     dt = torch.float64
     f, q, h = _kalman_matrices(cfg, dt)
@@ -88,7 +88,9 @@ def kalman_filter(
     return x, p
 
 
-def kalman_predict(obs: torch.Tensor, cfg: KalmanConfig = KalmanConfig(), pred_len: int = PRED_LEN) -> torch.Tensor:
+def kalman_predict(
+    obs: torch.Tensor, cfg: KalmanConfig = KalmanConfig(), pred_len: int = PRED_LEN
+) -> torch.Tensor:
     """Most-likely future of the constant-velocity Kalman filter."""
     x, _ = kalman_filter(obs, cfg)
     steps = torch.arange(1, pred_len + 1, dtype=x.dtype)

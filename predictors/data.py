@@ -219,7 +219,7 @@ def iterate_batches(
     rotate: bool = False,
     device: torch.device | str = "cpu",
 ) -> Iterator[Batch]:
-    """Yield batches of whole windows holding at most ``max_peds`` pedestrians each (one window may exceed it).
+    """Yield batches of whole windows with at most ``max_peds`` pedestrians each (one window may exceed it).
 
     Args:
         w: windows.

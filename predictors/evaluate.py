@@ -1,4 +1,6 @@
-"""Evaluate every predictor on the ETH/UCY leave-one-out test scenes and SDD (``python -m predictors.evaluate``).
+"""Evaluate every predictor on the ETH/UCY leave-one-out test scenes and SDD.
+
+Run ``python -m predictors.evaluate [--json]``.
 
 Protocol (``shared/docs/prediction.md`` §1): Social-GAN windows (8 observed, 12 predicted, 0.4 s; a
 pedestrian must be present in all 20 frames; windows with >= 2 such pedestrians), whole test recordings.
@@ -57,7 +59,7 @@ def scene_min(err: torch.Tensor, seq_start_end: torch.Tensor) -> torch.Tensor:
 
 def weights_for(kind: str, scene: str, weights_dir: Path) -> Path | None:
     """Checkpoint used for ``kind`` on ``scene`` (see module docstring), or ``None`` if absent."""
-    for name in ([f"{kind}_{scene}.pt"] + ([f"{kind}_all.pt"] if scene == "sdd" else [])):
+    for name in [f"{kind}_{scene}.pt"] + ([f"{kind}_all.pt"] if scene == "sdd" else []):
         if (weights_dir / name).is_file():
             return weights_dir / name
     return None
@@ -121,14 +123,22 @@ def run(
                 entry.update(evaluate_one(pred, w, num_samples, seed + 1000 * si))
             results.setdefault(name, {})[scene] = entry
             print(f"{name:7s} {scene:6s} {entry}", file=sys.stderr)
-    return {"protocol": "sgan-windows-8-12", "num_samples": num_samples, "seed": seed, "counts": counts, "results": results}
+    return {
+        "protocol": "sgan-windows-8-12",
+        "num_samples": num_samples,
+        "seed": seed,
+        "counts": counts,
+        "results": results,
+    }
 
 
 def with_average(res: dict[str, object]) -> dict[str, object]:
     """Add an ``avg`` entry (mean over the five ETH/UCY scenes) per model where all five are present."""
     for entries in res["results"].values():  # type: ignore[union-attr]
         if all(s in entries and "k1" in entries[s] for s in SCENES):
-            entries["avg"] = {m: [float(np.mean([entries[s][m][i] for s in SCENES])) for i in (0, 1)] for m in METRICS}
+            entries["avg"] = {
+                m: [float(np.mean([entries[s][m][i] for s in SCENES])) for i in (0, 1)] for m in METRICS
+            }
     return res
 
 
@@ -157,7 +167,9 @@ def to_markdown(res: dict[str, object]) -> str:
             lines.append(f"| {name} | " + " | ".join(cells) + " |")
         lines.append("")
     counts = res.get("counts", {})
-    lines.append("Test windows / pedestrian instances: " + ", ".join(f"{s} {c[0]}/{c[1]}" for s, c in counts.items()))
+    lines.append(
+        "Test windows / pedestrian instances: " + ", ".join(f"{s} {c[0]}/{c[1]}" for s, c in counts.items())
+    )
     lines.append("")
     lines.append("† SDD evaluated with the model trained on all ETH/UCY recordings (cross-dataset).")
     return "\n".join(lines) + "\n"

@@ -124,7 +124,7 @@ def bivariate_nll(raw: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
 def sample_gaussian(raw: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
     """One draw per row from the bivariate Gaussians ``raw (N, 5)``."""
     mu, sigma, rho = gaussian_params(raw)
-    e = torch.randn(raw.shape[:-1] + (2,), generator=generator, dtype=raw.dtype).to(raw.device)
+    e = torch.randn((*raw.shape[:-1], 2), generator=generator, dtype=raw.dtype).to(raw.device)
     x = sigma[..., 0] * e[..., 0]
     y = sigma[..., 1] * (rho * e[..., 0] + torch.sqrt(1.0 - rho * rho) * e[..., 1])
     return mu + torch.stack([x, y], dim=-1)
@@ -150,6 +150,11 @@ class SocialRecurrent(nn.Module):
         else:
             self.cell = nn.LSTMCell(in_size, c.hidden_size)
         self.head = nn.Linear(c.hidden_size, 5)
+        if c.cv_residual:
+            # Start exactly at the constant-velocity model; training learns the correction.
+            with torch.no_grad():
+                self.head.weight[:2].zero_()
+                self.head.bias[:2].zero_()
 
     # ----------------------------------------------------------------- pooling
     def social_pool(
@@ -236,7 +241,8 @@ class SocialRecurrent(nn.Module):
 
         Returns:
             ``raw (N, 7 + pred_len, 5)`` Gaussian parameters of the displacement *following* each input
-            step from step 1 on (the last ``pred_len`` entries are the predictions), and ``pos (N, pred_len, 2)``
+            step from step 1 on (the last ``pred_len`` entries are the predictions), and
+            ``pos (N, pred_len, 2)``
             the fed-back absolute positions (means, samples or the teacher).
         """
         n = obs.shape[0]

@@ -577,7 +577,9 @@ class QuantumLikeBayesNet:
                 marginal ``alpha |sum_y prod_k psi|^2`` with the nodes' CPT phases (M&W 2016, Eq. 25).
                 ``"heuristic"``: the expanded form (Eq. 26) with one theta per pair of unobserved
                 configurations from the similarity heuristic, the same theta for every query value; the
-                query must be binary. ``"explicit"``: Eq. 26 with the caller's ``theta``.
+                query must be binary. For more than two configurations this pairwise reading is
+                unverified and the cosines need not come from real phases, so a score can go negative;
+                it is clipped to 0. ``"explicit"``: Eq. 26 with the caller's ``theta``.
             theta: For ``"explicit"``: a scalar for every pair, or ``m(m-1)/2`` values for the pairs of
                 the m unobserved configurations in ``numpy.triu_indices(m, 1)`` order (C order of the
                 unobserved variables in :attr:`variables` order).

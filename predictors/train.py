@@ -25,7 +25,14 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from predictors.data import SCENES, Windows, default_data_root, iterate_batches, load_files, split_files, to_batch
+from predictors.data import (
+    SCENES,
+    Windows,
+    default_data_root,
+    iterate_batches,
+    load_files,
+    split_files,
+)
 from predictors.models import MODEL_KINDS, ModelConfig, SocialRecurrent, default_config
 
 CHECKPOINT_FORMAT = "crossing-env/trajectory-predictor/1"
@@ -45,7 +52,7 @@ class TrainConfig:
     seed: int = 0
     """Seed of torch and of the numpy generator that shuffles and rotates batches."""
     data: str = ""
-    """Data root holding ``eth_ucy/`` and ``sdd/`` (default: ``$CROSSING_DATA`` or ``<repo>/../shared/data``)."""
+    """Data root with ``eth_ucy/`` and ``sdd/`` (default ``$CROSSING_DATA``, else ``<repo>/../shared/data``)."""
     out: str = ""
     """Checkpoint path (default ``predictors/weights/<model>_<scene>.pt``)."""
     lr: float = 1e-3
@@ -128,14 +135,16 @@ def load_model(path: str | Path) -> SocialRecurrent:
         raise FileNotFoundError(f"predictor checkpoint not found: {path}")
     try:
         payload = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:  # noqa: BLE001 - torch raises UnpicklingError, RuntimeError, EOFError...
+    except Exception as exc:
         raise ValueError(f"{path}: not a readable torch checkpoint ({type(exc).__name__}: {exc})") from exc
     if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
         raise ValueError(f"{path}: not a crossing-env trajectory predictor checkpoint (field 'format')")
     cfg_dict = payload.get("config")
     known = {f.name for f in fields(ModelConfig)}
     if not isinstance(cfg_dict, dict) or set(cfg_dict) - known:
-        raise ValueError(f"{path}: field 'config' must hold ModelConfig fields {sorted(known)}, got {cfg_dict!r}")
+        raise ValueError(
+            f"{path}: field 'config' must hold ModelConfig fields {sorted(known)}, got {cfg_dict!r}"
+        )
     try:
         config = ModelConfig(**cfg_dict)
     except (TypeError, ValueError) as exc:
@@ -174,7 +183,9 @@ def train(cfg: TrainConfig) -> Path:
     root = Path(cfg.data) if cfg.data else default_data_root()
     train_w, val_w = load_training_data(root, cfg.scene)
     out = Path(cfg.out) if cfg.out else WEIGHTS_DIR / f"{cfg.model}_{cfg.scene}.pt"
-    model = SocialRecurrent(replace(default_config(cfg.model, cfg.fov_deg), cv_residual=bool(cfg.cv_residual)))
+    model = SocialRecurrent(
+        replace(default_config(cfg.model, cfg.fov_deg), cv_residual=bool(cfg.cv_residual))
+    )
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     best = (float("inf"), float("inf"))
     best_epoch, t0, windows_seen = -1, time.time(), 0
@@ -196,8 +207,12 @@ def train(cfg: TrainConfig) -> Path:
             bar.set_postfix(nll=f"{loss.item():.3f}")
         windows_seen += sub.num_windows
         val = most_likely_ade(model, val_w)
-        history.append({"epoch": epoch + 1, "train_nll": total / len(batches), "val_ade": val[0], "val_fde": val[1]})
-        print(f"epoch {epoch + 1}: train nll {total / len(batches):.3f}  val ADE/FDE {val[0]:.3f}/{val[1]:.3f}")
+        history.append(
+            {"epoch": epoch + 1, "train_nll": total / len(batches), "val_ade": val[0], "val_fde": val[1]}
+        )
+        print(
+            f"epoch {epoch + 1}: train nll {total / len(batches):.3f}  val ADE/FDE {val[0]:.3f}/{val[1]:.3f}"
+        )
         if val[0] < best[0]:
             best, best_epoch = val, epoch + 1
             meta = {
@@ -238,7 +253,9 @@ def parse_args(argv: list[str] | None = None) -> TrainConfig:
     p = argparse.ArgumentParser(prog="crossing-train", description=__doc__.splitlines()[0])
     d = TrainConfig()
     for f in fields(TrainConfig):
-        p.add_argument(f"--{f.name.replace('_', '-')}", type=type(getattr(d, f.name)), default=getattr(d, f.name))
+        p.add_argument(
+            f"--{f.name.replace('_', '-')}", type=type(getattr(d, f.name)), default=getattr(d, f.name)
+        )
     return TrainConfig(**vars(p.parse_args(argv)))
 
 

@@ -55,7 +55,9 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
         gym.ObservationWrapper.__init__(self, env)
         space = env.observation_space
         if not isinstance(space, spaces.Dict) or "pedestrians" not in space.spaces:
-            raise ValueError(f"TrajectoryPrediction needs a Dict observation space with 'pedestrians', got {space}")
+            raise ValueError(
+                f"TrajectoryPrediction needs a Dict observation space with 'pedestrians', got {space}"
+            )
         hist = space.spaces.get("pedestrian_history")
         if not isinstance(hist, spaces.Box) or len(hist.shape) != 3 or hist.shape[1:] != (OBS_LEN, 2):
             raise ValueError(f"observation 'pedestrian_history' must be a Box (K, {OBS_LEN}, 2), got {hist}")
@@ -67,7 +69,9 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
         bound = float(max(np.abs(hist.low).max(), np.abs(hist.high).max())) + PRED_LEN * MAX_STEP
         self.bound = np.float32(bound) if np.isfinite(bound) else np.float32(np.finfo(np.float32).max)
         new = dict(space.spaces)
-        new["predicted_paths"] = spaces.Box(-self.bound, self.bound, (self.num_slots, PRED_LEN, 2), np.float32)
+        new["predicted_paths"] = spaces.Box(
+            -self.bound, self.bound, (self.num_slots, PRED_LEN, 2), np.float32
+        )
         if num_samples:
             new["predicted_samples"] = spaces.Box(
                 -self.bound, self.bound, (self.num_slots, num_samples, PRED_LEN, 2), np.float32
@@ -76,7 +80,9 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
         self._generator = torch.Generator().manual_seed(0)
         self._sse_cache: dict[int, torch.Tensor] = {}
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
         """Reset the env; a seed also reseeds the sampling generator so episodes are reproducible."""
         if seed is not None:
             self._generator.manual_seed(int(seed))
@@ -94,7 +100,9 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
             samples = cvm_samples(obs, self.num_samples, self._generator) if self.num_samples else None
         else:
             paths = self.model.predict(obs, sse)
-            samples = self.model.sample(obs, sse, self.num_samples, self._generator) if self.num_samples else None
+            samples = (
+                self.model.sample(obs, sse, self.num_samples, self._generator) if self.num_samples else None
+            )
         out_s = None if samples is None else samples.permute(1, 0, 2, 3).numpy()
         return paths.numpy(), out_s
 
@@ -102,7 +110,11 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
         """Predict the paths of the present pedestrian slots (batched over the slots)."""
         present = np.flatnonzero(np.asarray(observation["pedestrians"])[:, 0] > 0.5)
         paths = np.zeros((self.num_slots, PRED_LEN, 2), np.float32)
-        samples = np.zeros((self.num_slots, self.num_samples, PRED_LEN, 2), np.float32) if self.num_samples else None
+        samples = (
+            np.zeros((self.num_slots, self.num_samples, PRED_LEN, 2), np.float32)
+            if self.num_samples
+            else None
+        )
         if len(present):
             p, s = self._predict(np.asarray(observation["pedestrian_history"])[present])
             paths[present] = np.nan_to_num(p)

@@ -112,6 +112,7 @@ def _short_repr(value: Any) -> str:
 # ------------------------------------------------------------------------------- structural (pydantic)
 
 
+@functools.cache
 def _field_types(cls: type) -> dict[str, Any]:
     """Resolved annotations of a config dataclass (strings under `from __future__ import annotations`)."""
     module = sys.modules[cls.__module__]
@@ -131,7 +132,7 @@ def _pydantic_type(tp: Any) -> Any:
     """Map a dataclass field type onto the strict model type: dataclasses → models, tuples → lists."""
     optional, inner = _is_optional(tp)
     if optional:
-        return typing.Optional[_pydantic_type(inner)]  # noqa: UP045 - built at runtime, `|` needs real classes
+        return _pydantic_type(inner) | None
     if dataclasses.is_dataclass(tp):
         return _model_for(tp)
     if get_origin(tp) is tuple:
@@ -237,7 +238,7 @@ def _pydantic_problems(error: pydantic.ValidationError) -> list[Problem]:
             allowed = f"unknown key {key!r}"
             allowed += f" (did you mean {hint[0]!r}?)" if hint else ""
             allowed += "; allowed keys: " + ", ".join(allowed_keys)
-            problems.append(Problem(_join([*parts, key]), err["input"], allowed))
+            problems.append(Problem(_join([*parts, _toml_key(key)]), err["input"], allowed))
             continue
         tp, parts = _type_at(loc)
         path = _join(parts)

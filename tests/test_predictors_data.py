@@ -41,7 +41,7 @@ def test_read_rejects_bad_line_naming_file(tmp_path: Path) -> None:
     f.write_text("1\t2\tx\t4.0\n")
     with pytest.raises(ValueError, match=r"bad\.txt:1"):
         read_trajectory_file(f)
-    with pytest.raises(FileNotFoundError, match="missing.txt"):
+    with pytest.raises(FileNotFoundError, match=r"missing\.txt"):
         read_trajectory_file(tmp_path / "missing.txt")
 
 

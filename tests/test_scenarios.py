@@ -137,7 +137,9 @@ def test_situations_have_their_defining_features() -> None:
     assert occ.ego.x < nearest.x < occ.crossing.position
     assert occ.crossing.position - nearest.x < 15.0
     hidden = occ.pedestrians.spawns[0]
-    assert abs(hidden.x - nearest.x) <= occ.traffic.length / 2 and hidden.side == "south"
+    # The pedestrian appears right in front of the van, on its kerb side, and does not look.
+    assert 0.0 < hidden.x - (nearest.x + occ.traffic.length / 2) < 2.0 and hidden.side == "south"
+    assert hidden.critical_gap == 0.0
 
     kids = load_scenario("children_running")
     children = [p for p in kids.pedestrians.spawns if p.radius is not None and p.radius <= 0.22]

@@ -1,0 +1,170 @@
+"""Parameter counts and per-batch inference latency of S-CGRU, S-GRU and S-LSTM (the seed paper's Table 2).
+
+Run: ``python benchmarks/predictors.py [--repeats 30] [--threads 1] [--fov-sweep --scene eth]``.
+
+Latencies are measured in one process, interleaving the models round-robin so that load from other
+processes hits them equally; the median over repeats is reported with the ratio to S-LSTM. The batch is
+the ETH test set (70 windows, 181 pedestrians) when the data is present, else a synthetic batch of the
+same shape. ``--fov-sweep`` trains a short S-CGRU run per field of view and reports *validation* ADE/FDE
+(never test), the analogue of the paper's Table 3.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+
+from predictors.data import default_data_root, load_split, to_batch
+from predictors.models import ModelConfig, SocialRecurrent, count_parameters, default_config
+
+
+def equal_dof_gru_hidden(target: int) -> int:
+    """Hidden size of an S-GRU whose parameter count is closest to ``target`` (the real-DoF control)."""
+    best = min(
+        range(16, 257),
+        key=lambda h: abs(count_parameters(SocialRecurrent(ModelConfig("s-gru", h)))[0] - target),
+    )
+    return best
+
+
+def batch(data: Path) -> tuple[torch.Tensor, torch.Tensor, str]:
+    try:
+        b = to_batch(load_split(data, "eth", "test"))
+        return b.obs, b.seq_start_end, "ETH test (70 windows, 181 peds)"
+    except FileNotFoundError:
+        g = torch.Generator().manual_seed(0)
+        sizes = torch.full((70,), 3)
+        sizes[:41] = 2
+        ends = torch.cumsum(sizes, 0)
+        obs = torch.randn(int(ends[-1]), 8, 2, generator=g).cumsum(1) * 0.3
+        return obs, torch.stack([ends - sizes, ends], 1), "synthetic (70 windows, 181 peds)"
+
+
+def time_models(
+    models: dict[str, nn.Module], obs: torch.Tensor, sse: torch.Tensor, repeats: int
+) -> dict[str, float]:
+    times: dict[str, list[float]] = {k: [] for k in models}
+    with torch.inference_mode():
+        for m in models.values():
+            for _ in range(3):
+                m.predict(obs, sse)
+        for _ in range(repeats):
+            for k, m in models.items():
+                t0 = time.perf_counter()
+                m.predict(obs, sse)
+                times[k].append(time.perf_counter() - t0)
+    return {k: statistics.median(v) * 1e3 for k, v in times.items()}
+
+
+def wrapper_ms(k: int = 16, repeats: int = 200) -> float | None:
+    from predictors.train import WEIGHTS_DIR
+    from predictors.trajectory_wrapper import TrajectoryPrediction
+
+    if not (WEIGHTS_DIR / "s-cgru_all.pt").is_file():
+        return None
+    import gymnasium as gym
+    from gymnasium import spaces
+
+    class _Env(gym.Env):
+        observation_space = spaces.Dict(
+            {
+                "pedestrians": spaces.Box(-1e3, 1e3, (k, 4), np.float32),
+                "pedestrian_history": spaces.Box(-1e3, 1e3, (k, 8, 2), np.float32),
+            }
+        )
+        action_space = spaces.Discrete(1)
+
+    rng = np.random.default_rng(0)
+    hist = rng.uniform(-10, 10, (k, 1, 2)) + np.arange(8)[None, :, None] * rng.uniform(-0.5, 0.5, (k, 1, 2))
+    obs = {"pedestrians": np.ones((k, 4), np.float32), "pedestrian_history": hist.astype(np.float32)}
+    w = TrajectoryPrediction(_Env())
+    for _ in range(20):
+        w.observation(obs)
+    ts = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        w.observation(obs)
+        ts.append(time.perf_counter() - t0)
+    return statistics.median(ts) * 1e3
+
+
+def fov_sweep(scene: str, fovs: list[float], minutes: float, data: Path) -> None:
+    from predictors.train import TrainConfig, checkpoint_meta, train
+
+    print(f"\nFoV sweep on {scene} (validation split, {minutes} min per run, cv_residual=1)")
+    for fov in fovs:
+        out = Path(f"/tmp/fov_{scene}_{int(fov)}.pt")
+        cfg = TrainConfig(
+            model="s-cgru",
+            scene=scene,
+            epochs=100,
+            max_minutes=minutes,
+            fov_deg=fov,
+            data=str(data),
+            out=str(out),
+            cv_residual=1,
+        )
+        train(cfg)
+        meta = checkpoint_meta(out)
+        print(
+            f"fov {fov:5.0f} deg: val ADE/FDE {meta['val_ade']:.3f}/{meta['val_fde']:.3f}"
+            f" (epochs {meta['epochs_run']})"
+        )
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--repeats", type=int, default=30)
+    p.add_argument("--threads", type=int, default=1)
+    p.add_argument("--data", default="")
+    p.add_argument("--fov-sweep", action="store_true")
+    p.add_argument("--scene", default="eth")
+    p.add_argument("--sweep-minutes", type=float, default=2.0)
+    a = p.parse_args()
+    torch.set_num_threads(a.threads)
+    torch.manual_seed(0)
+    data = Path(a.data) if a.data else default_data_root()
+
+    cg = SocialRecurrent(default_config("s-cgru"))
+    models: dict[str, nn.Module] = {
+        "s-lstm": SocialRecurrent(default_config("s-lstm")),
+        "s-gru": SocialRecurrent(default_config("s-gru")),
+        "s-cgru": cg,
+    }
+    h_eq = equal_dof_gru_hidden(count_parameters(cg)[1])
+    models[f"s-gru (h={h_eq}, equal DoF)"] = SocialRecurrent(ModelConfig("s-gru", h_eq))
+    models["s-cgru (128 complex units)"] = SocialRecurrent(replace(default_config("s-cgru"), hidden_size=256))
+    print("Parameters (numel / real degrees of freedom):")
+    for k, m in models.items():
+        n, d = count_parameters(m)
+        print(f"  {k:28s} {n:9,d} / {d:9,d}")
+    native = nn.GRUCell(128, 128, dtype=torch.cfloat)
+    n, d = count_parameters(native)
+    print(f"  {'native complex GRUCell(128)':28s} {n:9,d} / {d:9,d}  (cell only, for reference)")
+
+    obs, sse, label = batch(data)
+    ms = time_models(models, obs, sse, a.repeats)
+    print(
+        f"\nInference latency per batch, most-likely 12-step rollout, {label}, {a.threads} thread(s),"
+        f" median of {a.repeats}:"
+    )
+    for k, v in ms.items():
+        print(f"  {k:28s} {v:8.2f} ms   ratio to S-LSTM {v / ms['s-lstm']:.2f}")
+    wm = wrapper_ms()
+    if wm is not None:
+        print(
+            f"\nTrajectoryPrediction wrapper, K=16 present pedestrians, default weights: {wm:.2f} ms per step"
+        )
+    if a.fov_sweep:
+        fov_sweep(a.scene, [60.0, 85.0, 120.0, 180.0, 360.0], a.sweep_minutes, data)
+
+
+if __name__ == "__main__":
+    main()

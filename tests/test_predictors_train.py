@@ -1,0 +1,124 @@
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from predictors import evaluate
+from predictors.models import SocialRecurrent, default_config
+from predictors.train import WEIGHTS_DIR, checkpoint_meta, load_model, main, save_checkpoint
+
+
+def _write_scene(folder: Path, name: str, seed: int, frames: int = 40) -> None:
+    rng = np.random.default_rng(seed)
+    folder.mkdir(parents=True, exist_ok=True)
+    lines = []
+    starts = rng.uniform(0, 10, (4, 2))
+    vel = rng.normal(0, 0.4, (4, 2))
+    for t in range(frames):
+        for p in range(4):
+            x, y = starts[p] + vel[p] * t
+            lines.append(f"{t * 10}\t{p + 1}.0\t{x:.3f}\t{y:.3f}")
+    (folder / name).write_text("\n".join(lines) + "\n")
+
+
+@pytest.fixture
+def data_root(tmp_path: Path) -> Path:
+    root = tmp_path / "data"
+    for split, seed in (("train", 0), ("val", 1), ("test", 2)):
+        _write_scene(root / "eth_ucy" / "eth" / split, f"a_{split}.txt", seed)
+    return root
+
+
+def test_train_cli_writes_loadable_checkpoint(data_root: Path, tmp_path: Path) -> None:
+    out = tmp_path / "w" / "m.pt"
+    rc = main(
+        ["--model", "s-gru", "--scene", "eth", "--epochs", "2", "--data", str(data_root), "--out", str(out)]
+    )
+    assert rc == 0
+    model = load_model(out)
+    assert model.config.kind == "s-gru"
+    meta = checkpoint_meta(out)
+    assert meta["scene"] == "eth" and meta["epochs_run"] == 2 and len(meta["history"]) == 2
+    assert meta["best_epoch"] in (1, 2)
+    assert not list(out.parent.glob("*.tmp"))
+
+
+def test_train_cli_bad_input_exits_nonzero(
+    data_root: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    assert main(["--model", "transformer", "--data", str(data_root), "--out", str(tmp_path / "x.pt")]) == 2
+    assert "transformer" in capsys.readouterr().err
+    assert main(["--scene", "hotel", "--data", str(data_root), "--out", str(tmp_path / "x.pt")]) == 2
+    assert "hotel" in capsys.readouterr().err
+
+
+def test_checkpoint_roundtrip_and_clear_errors(tmp_path: Path) -> None:
+    m = SocialRecurrent(default_config("s-cgru"))
+    path = tmp_path / "ok.pt"
+    save_checkpoint(path, m, {"note": "x"})
+    loaded = load_model(path)
+    for (k, a), (_, b) in zip(m.state_dict().items(), loaded.state_dict().items(), strict=True):
+        torch.testing.assert_close(a.half().float(), b, msg=k)
+
+    corrupt = tmp_path / "corrupt.pt"
+    corrupt.write_bytes(path.read_bytes()[:1000])
+    with pytest.raises(ValueError, match=r"corrupt\.pt"):
+        load_model(corrupt)
+
+    foreign = tmp_path / "foreign.pt"
+    torch.save({"weights": torch.zeros(3)}, foreign)
+    with pytest.raises(ValueError, match=r"foreign\.pt.*format"):
+        load_model(foreign)
+
+    pickled = tmp_path / "pickled.pt"
+    torch.save(m, pickled)  # a whole pickled module is refused by weights_only=True
+    with pytest.raises(ValueError, match=r"pickled\.pt"):
+        load_model(pickled)
+
+    wrong = tmp_path / "wrong.pt"
+    payload = torch.load(path, weights_only=True)
+    payload["config"] = default_config("s-lstm").to_dict()
+    torch.save(payload, wrong)
+    with pytest.raises(ValueError, match=r"wrong\.pt.*s-lstm"):
+        load_model(wrong)
+
+    with pytest.raises(FileNotFoundError, match=r"nope\.pt"):
+        load_model(tmp_path / "nope.pt")
+
+
+def test_shipped_weights_load_and_are_small() -> None:
+    files = sorted(WEIGHTS_DIR.glob("*.pt"))
+    if not files:
+        pytest.skip("no shipped weights yet")
+    assert (WEIGHTS_DIR / "s-cgru_all.pt").is_file()
+    assert sum(f.stat().st_size for f in files) < 10 * 2**20
+    for f in files:
+        assert f.stat().st_size < 600 * 2**10, f
+        load_model(f)
+
+
+def test_scene_min_matches_brute_force() -> None:
+    g = torch.Generator().manual_seed(0)
+    err = torch.rand(5, 7, generator=g)
+    sse = torch.tensor([[0, 3], [3, 4], [4, 7]])
+    got = evaluate.scene_min(err, sse)
+    want = torch.stack([err[:, s:e].sum(1).min() for s, e in sse.tolist()])
+    torch.testing.assert_close(got, want)
+
+
+def test_evaluate_cli_json_on_synthetic_data(data_root: Path, capsys: pytest.CaptureFixture) -> None:
+    rc = evaluate.main(
+        ["--data", str(data_root), "--scenes", "eth", "--models", "cvm,cvm-s,kalman", "--json"]
+    )
+    assert rc == 0
+    res = json.loads(capsys.readouterr().out)
+    eth = res["results"]["cvm"]["eth"]
+    # synthetic walkers move at constant velocity: CVM is exact
+    assert eth["k1"][0] < 1e-3 and eth["ped20"][1] < 1e-3
+    cs = res["results"]["cvm-s"]["eth"]
+    assert cs["ped20"][0] <= cs["scene20"][0] + 1e-9  # per-pedestrian min can only be smaller
+    assert evaluate.main(["--data", str(data_root), "--scenes", "mars"]) == 2
