@@ -59,8 +59,8 @@ class QuantumGapConfig:
     """Logistic scale (s) of the belief that the gap is safe around the critical gap; 0 gives a step."""
     p_cross_safe: float = 0.95
     """P(step off at one look | gap safe)."""
-    p_cross_unsafe: float = 0.002
-    """P(step off at one look | gap unsafe): impatience; per look, so small (about 0.4 % per second)."""
+    p_cross_unsafe: float = 0.001
+    """P(step off at one look | gap unsafe): impatience; per look, so small (about 0.2 % per second)."""
     decision_interval: float = 0.5
     """Seconds between two looks at the traffic; converts per-look probabilities into a per-step hazard."""
 
@@ -95,8 +95,11 @@ def per_step_hazard(p_per_look: FloatArray, dt: float, interval: float) -> Float
     ``1 - (1 - p)^(dt / interval)``, so that the probability of having decided within any time span is the
     same for every dt (a constant hazard between looks).
     """
+    if not (dt > 0.0 and interval > 0.0):
+        raise ValueError(f"per_step_hazard: dt and interval must be > 0, got dt={dt}, interval={interval}")
     p = np.clip(np.asarray(p_per_look, dtype=np.float64), 0.0, 1.0)
-    return -np.expm1((dt / interval) * np.log1p(-np.minimum(p, 1.0 - 1e-300))) if dt > 0 else np.zeros_like(p)
+    with np.errstate(divide="ignore"):  # p = 1 gives log(0) = -inf and a hazard of exactly 1
+        return -np.expm1((dt / interval) * np.log1p(-p))
 
 
 class QuantumGapAcceptance:

@@ -110,10 +110,10 @@ def time_to_collision(
 def _slabs(q: np.ndarray, u: np.ndarray, lo: ArrayLike, hi: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """Times (enter, leave) at which q + uτ is inside the box [lo, hi] (both axes at once, (..., 2)).
 
-    Call under ``np.errstate(divide="ignore", invalid="ignore")``. A zero velocity component gives ±inf
-    slab times, which is exactly right (always or never inside along that axis); the only degenerate
-    case is a point exactly on a slab boundary with zero velocity across it (0·inf = nan), which yields
-    an empty interval: a grazing contact along an edge is reported as a miss (a measure-zero event).
+    Call with numpy's divide/invalid/overflow warnings off. A zero velocity component gives ±inf slab
+    times, which is exactly right (always or never inside along that axis); the only degenerate case is a
+    point exactly on a slab boundary with zero velocity across it (0·inf = nan), which yields an empty
+    interval: a grazing contact along an edge is reported as a miss (a measure-zero event).
     """
     inv = 1.0 / u
     t1 = (lo - q) * inv
@@ -179,7 +179,7 @@ def box_circle_ttc(
     q2 = np.broadcast_to(q, (*shape, 2)).reshape(-1, 2)
     u2 = np.broadcast_to(u, (*shape, 2)).reshape(-1, 2)
     half = 0.5 * np.broadcast_to(lw, (*shape, 2)).reshape(-1, 2)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         out = _box_disc_ttc(q2, u2, half, np.broadcast_to(r, shape).reshape(-1))
     return _scalar_or_array(out.reshape(shape))
 
@@ -265,7 +265,7 @@ def crossing_drac(speed: ArrayLike, distance: ArrayLike, clear_time: ArrayLike) 
     v = np.asarray(speed, dtype=np.float64)
     d = np.asarray(distance, dtype=np.float64)
     t = np.asarray(clear_time, dtype=np.float64)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         stop = np.where(d > 0.0, 0.5 * v * v / np.where(d > 0.0, d, 1.0), _INF)
         sumo = 2.0 * (v - d / t) / t
     arrives_early = v * t > d
@@ -301,7 +301,7 @@ def rect_occupancy_interval(
     q = np.asarray(position, dtype=np.float64)
     u = np.asarray(velocity, dtype=np.float64)
     m = np.asarray(margin, dtype=np.float64)[..., None]
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         return _slabs(q, u, np.array([x_min, y_min]) - m, np.array([x_max, y_max]) + m)
 
 
@@ -469,6 +469,8 @@ def json_safe(value: Any) -> Any:
     """Recursively convert to JSON-safe Python types: non-finite floats → None, tuples/arrays → lists."""
     if isinstance(value, bool | str) or value is None:
         return value
+    if isinstance(value, np.bool_):
+        return bool(value)
     if isinstance(value, int | np.integer):
         return int(value)
     if isinstance(value, float | np.floating):
@@ -555,7 +557,8 @@ class EpisodeMetrics:
       (nuPlan). TTC to vehicles: following TTC to vehicles ahead whose footprint overlaps the ego's
       laterally (same lane); vehicles behind the ego and oncoming traffic are not scored.
     - Conflict area (CA) = `GroundTruth.conflict_area` (ego lane × crossing). The ego occupies it when its
-      box overlaps the rectangle, a pedestrian when its disc's bounding square does (conservative by at
+      box overlaps the rectangle, a pedestrian when its centre is on the carriageway (`on_road`, so people
+      at the kerb do not count) and its disc's bounding square overlaps the rectangle (conservative by at
       most r·(√2 − 1) ≈ 0.12 m at the rectangle's corners; it shares the slab test with the DRAC).
       Entry and exit times have the resolution of one step.
     - PET: at each ego entry, one pedestrian-first PET per pedestrian that left the CA since the ego's
@@ -592,6 +595,12 @@ class EpisodeMetrics:
 
     def reset(self) -> None:
         """Forget everything (reuse the accumulator for a new episode of the same scenario)."""
+        self.step_ttc = _INF
+        """Minimum ego–pedestrian TTC of the latest update (inf if none or the ego stands), for plots."""
+        self.step_separation = _INF
+        """Minimum ego–pedestrian footprint distance of the latest update (inf without pedestrians)."""
+        self.step_drac = 0.0
+        """Crossing DRAC of the latest update (0 if no pedestrian holds the conflict area first)."""
         self._steps = 0
         self._time = 0.0
         self._start_x = float(self.scenario.ego.x)
@@ -635,7 +644,7 @@ class EpisodeMetrics:
         self._waits: list[float] = []
         self._peds = _PedTable()
         self._ca: ConflictArea | None = None
-        self._ca_arrays: tuple[np.ndarray, np.ndarray] = ()  # type: ignore[assignment]
+        self._ca_arrays: tuple[np.ndarray, np.ndarray] = (np.zeros(2), np.zeros(2))
         self._size: tuple[float, float] = (math.nan, math.nan)
         self._half: np.ndarray | None = None
 
@@ -710,6 +719,7 @@ class EpisodeMetrics:
         if self._half is None or self._size != (length, width):
             self._size = (length, width)
             self._half = np.array([0.5 * length, 0.5 * width])
+        self.step_ttc, self.step_separation, self.step_drac = _INF, _INF, 0.0
         if gt.vehicle_ids.shape[0]:
             self._update_vehicles(gt, evx, self._half)
         if gt.pedestrian_ids.shape[0]:
@@ -767,13 +777,14 @@ class EpisodeMetrics:
         pv: FloatArray = gt.pedestrian_velocities
         rad = gt.pedestrian_radii
         ca_lo, ca_hi = self._conflict_arrays(ca)
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             # Separation: signed distance from each disc to the ego box.
             q = pp - gt.ego_position
             d = np.abs(q) - half
             sep = np.hypot(np.maximum(d[:, 0], 0.0), np.maximum(d[:, 1], 0.0))
             sep += np.minimum(np.maximum(d[:, 0], d[:, 1]), 0.0) - rad
             min_sep = float(sep.min())
+            self.step_separation = min_sep
             if min_sep < self._min_sep:
                 self._min_sep = min_sep
             if min_sep < cfg.clearance:
@@ -781,6 +792,7 @@ class EpisodeMetrics:
             # TTC: exact box–disc, only while the ego moves.
             if speed > cfg.ttc_min_ego_speed:
                 min_ttc = float(_box_disc_ttc(q, pv - gt.ego_velocity, half, rad).min())
+                self.step_ttc = min_ttc
                 if min_ttc < self._min_ttc:
                     self._min_ttc = min_ttc
                 if min_ttc < cfg.serious_ttc:
@@ -790,7 +802,7 @@ class EpisodeMetrics:
             # Conflict-area occupancy interval of each disc's bounding square (constant velocity).
             margin = rad[:, None]
             t_in, t_out = _slabs(pp, pv, ca_lo - margin, ca_hi + margin)
-            ped_in = (t_in <= 0.0) & (t_out >= 0.0)
+            ped_in = (t_in <= 0.0) & (t_out >= 0.0) & gt.on_road
             # Crossing DRAC: pedestrians holding the conflict area when the ego front would reach it.
             d_b = ca.x_min - front
             evx = float(gt.ego_velocity[0])
@@ -800,6 +812,7 @@ class EpisodeMetrics:
                 if np.count_nonzero(first):
                     # crossing_drac is non-decreasing in t_A, so the latest exit gives the maximum.
                     drac = _crossing_drac_scalar(evx, d_b, float(t_out[first].max()))
+                    self.step_drac = drac
                     if drac > self._max_drac_cross:
                         self._max_drac_cross = drac
 
@@ -1027,7 +1040,8 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
     Keys (floats may be nan when undefined; pass through `json_safe` before writing JSON):
     episodes; collision_rate and collision_ci95 (any collision, Wilson); pedestrian_collision_rate and
     pedestrian_collision_ci95; compliant/noncompliant_pedestrian_collisions; mean_impact_speed;
-    min_ttc_p5/p50 (episode minima, inf ignored) and serious_conflict_rate (episodes with min TTC <
+    min_ttc_p5/p50 (episode minima, inf ignored), min_ttc_finite_fraction (episodes with a finite minimum
+    TTC, to read the percentiles against) and serious_conflict_rate (episodes with min TTC <
     `serious_ttc`); min_separation_p5/p50; pet_pedestrian_first_p5/p50, pet_ego_first_p5/p50 and
     critical_pet_rate (episodes with a PET < `critical_pet`); simultaneous_occupancies; drac_crossing_mean /
     _max and drac_following_max; hard_brakes_per_episode (events), comfort_violations_per_episode (steps),
@@ -1068,6 +1082,7 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
         "mean_impact_speed": _mean(col("max_impact_speed")),
         "min_ttc_p5": ttc5,
         "min_ttc_p50": ttc50,
+        "min_ttc_finite_fraction": float(np.mean(np.isfinite(min_ttc))),
         "serious_conflict_rate": float(np.mean(min_ttc < cfg.serious_ttc)),
         "min_separation_p5": sep5,
         "min_separation_p50": sep50,

@@ -30,6 +30,8 @@ KERB_STANDOFF = 0.45
 """Distance in metres from the kerb line at which a waiting pedestrian stands."""
 ARRIVAL_TOLERANCE = 0.35
 """Distance in metres at which a waypoint counts as reached."""
+GROUP_MAX_WAIT = 8.0
+"""Seconds a group member at the kerb waits for companions still walking up before deciding alone."""
 
 
 @dataclass(frozen=True)
@@ -100,6 +102,8 @@ class PedestrianPopulation:
         self.wait_time = np.zeros(n)
         self.group = np.full(n, -1, dtype=np.int64)
         self.force_intensity = np.full(n, self.config.social_force.ped_intensity)
+        self.turning_back = np.zeros(n, dtype=bool)  # walking back to the start kerb after turning back
+        self.accepted_gap = np.full(n, np.nan)  # gap (s) at the last start of a crossing (evaluation only)
         self.history = np.zeros((n, history_length, 2))
         self.next_id = 0
         self.next_group = 1_000_000  # random groups get ids far from scenario-given ones
@@ -179,6 +183,8 @@ class PedestrianPopulation:
         self.hesitate_at[i] = self.rng.uniform(0.2, 0.8) if self.rng.random() < b.hesitation_rate else np.inf
         self.turn_back_at[i] = self.rng.uniform(0.1, 0.4) if self.rng.random() < b.turn_back_rate else np.inf
         self.force_intensity[i] = self.config.social_force.ped_intensity
+        self.turning_back[i] = False
+        self.accepted_gap[i] = np.nan
         if spawn.crossing_x is not None:
             cx = spawn.crossing_x
             self.jaywalker[i] = not (geo.has_crossing and geo.crossing_rect.x_min <= cx <= geo.crossing_rect.x_max)
@@ -196,7 +202,7 @@ class PedestrianPopulation:
             self.waypoint[i] = (cx, self._kerb_y[0] if side > 0 else self._kerb_y[1])
             onward = np.sign(cx - spawn.x) or (1.0 if self.rng.random() < 0.5 else -1.0)
             self.goal[i] = (cx + onward * self.rng.uniform(8.0, 20.0), far_y)
-            if self.jaywalker[i]:
+            if self.jaywalker[i] and geo.has_crossing:  # on an unmarked road every crossing is "away"
                 self._log(i, "jaywalk")
         else:
             self.state[i] = LEAVING
@@ -264,6 +270,8 @@ class PedestrianPopulation:
             self.spawn(self._pending.pop(0))
         self._random_arrivals()
         self._update_states(cars, pedestrian_green)
+        if self.config.behaviour.update_force_intensity:
+            self._update_force_intensity()
         self._update_velocities(cars)
 
     def _update_states(self, cars: CarSnapshot, pedestrian_green: bool | None) -> None:
@@ -277,14 +285,16 @@ class PedestrianPopulation:
         for i in np.flatnonzero((before == APPROACHING) & arrived):
             st[i] = WAITING
             self.wait_time[i] = 0.0
+            self.turning_back[i] = False
         # WAITING: decide.
         waiting = np.flatnonzero((st == WAITING) & (before == WAITING))
         if waiting.size:
             self.wait_time[waiting] += self.dt
             red = np.full(waiting.size, pedestrian_green is False)
             red &= ~self.jaywalker[waiting]  # the signal only governs the zebra
+            gap = self.gaps(cars, waiting)
             ctx = DecisionContext(
-                gap=self.gaps(cars, waiting),
+                gap=gap,
                 critical_gap=self.critical_gap[waiting],
                 phase=self.phase[waiting],
                 waited=self.wait_time[waiting],
@@ -294,11 +304,16 @@ class PedestrianPopulation:
             )
             prob = self.decision_model.probability(ctx)
             go = self.rng.random(waiting.size) < prob
-            # Groups move together: if one member goes, waiting companions go too.
+            # Groups move together: members wait at the kerb for companions still walking up (for at most
+            # GROUP_MAX_WAIT), and if one member goes, waiting companions go too.
             groups = self.group[waiting]
             if np.any(groups >= 0) and go.any():
+                walking_up = self.group[(self.state == APPROACHING) & self.intends & (self.group >= 0)]
+                held = (groups >= 0) & np.isin(groups, walking_up) & (self.wait_time[waiting] < GROUP_MAX_WAIT)
+                go &= ~held
                 moving_groups = groups[go & (groups >= 0)]
-                go |= (groups >= 0) & np.isin(groups, moving_groups)
+                go |= (groups >= 0) & np.isin(groups, moving_groups) & ~held
+            self.accepted_gap[waiting[go]] = gap[go]
             for k in np.flatnonzero(go):
                 self._start_crossing(int(waiting[k]), bool(red[k]))
         # CROSSING: irrational acts and arrival.
@@ -318,10 +333,10 @@ class PedestrianPopulation:
             for k in np.flatnonzero(progress >= self.turn_back_at[crossing]):
                 i = int(crossing[k])
                 self.turn_back_at[i] = np.inf
-                self.side[i] = -self.side[i]
-                self.state[i] = APPROACHING  # head back to the kerb it came from, then re-decide
+                # Head back to the kerb it came from (its side is unchanged), wait there and re-decide.
+                self.state[i] = APPROACHING
+                self.turning_back[i] = True
                 self.waypoint[i] = (self.position[i, 0], self._kerb_y[0] if self.side[i] > 0 else self._kerb_y[1])
-                self.goal[i, 1] = self._walk_y[1] if self.side[i] > 0 else self._walk_y[0]
                 self.desired_speed[i] = self.base_speed[i] * 1.2
                 self._log(i, "turn_back")
             done = crossing[arrived[crossing] & (st[crossing] == CROSSING)]
@@ -350,6 +365,25 @@ class PedestrianPopulation:
         if self.runs[i]:
             self.desired_speed[i] = min(2.0 * self.base_speed[i], 3.5)
             self._log(i, "run")
+
+    def irrational_now(self) -> np.ndarray:
+        """(n,) visibly acting irrationally this step: running, on red or away from the zebra on the road,
+        hesitating mid-crossing, turning back, or on the phone on the road."""
+        crossing = self.state == CROSSING
+        on_road = self.on_road()
+        return self.active & (
+            (crossing & (self.runs | self.crossed_on_red | (self.jaywalker & self.geometry.has_crossing)))
+            | (self.hesitate_left > 0)
+            | self.turning_back
+            | (self.distracted & on_road)
+        )
+
+    def _update_force_intensity(self) -> None:
+        """Seed Case 2: the QLB-updated ped–ped intensity from the irrational fraction of neighbours in view."""
+        from crossing_env.behaviour import irrational_neighbour_fraction, updated_ped_intensity
+
+        fraction = irrational_neighbour_fraction(self.position, self.active, self.irrational_now())
+        self.force_intensity = updated_ped_intensity(self.config.social_force.ped_intensity, fraction)
 
     def _update_velocities(self, cars: CarSnapshot) -> None:
         act = np.flatnonzero(self.active)

@@ -32,12 +32,6 @@ def _norm(v: FloatArray) -> FloatArray:
     return np.sqrt(v[..., 0] * v[..., 0] + v[..., 1] * v[..., 1])
 
 
-def _anisotropy(direction: FloatArray, normal_from_other: FloatArray, lam: float) -> FloatArray:
-    """Weight of an interaction given the walking direction and the unit vector from the other body."""
-    cos_phi = -np.sum(direction * normal_from_other, axis=-1)
-    return lam + (1.0 - lam) * 0.5 * (1.0 + cos_phi)
-
-
 def social_force_acceleration(
     positions: FloatArray,
     velocities: FloatArray,
@@ -79,28 +73,39 @@ def social_force_acceleration(
     speed = _norm(velocities)[:, None]
     heading = np.where(speed > 0.05, velocities / np.maximum(speed, 1e-9), e)
 
-    k_p = params.ped_intensity if ped_intensity is None else np.asarray(ped_intensity)[:, None]
+    k_p = params.ped_intensity if ped_intensity is None else np.asarray(ped_intensity)
+    x, y = positions[:, 0], positions[:, 1]
+    hx, hy = heading[:, 0:1], heading[:, 1:2]
+    lam = params.anisotropy
     if n > 1:
-        diff = positions[:, None, :] - positions[None, :, :]  # from j to i
-        dist = _norm(diff)
+        # Components kept as separate (P, P) arrays: fewer temporaries than (P, P, 2) stacks.
+        dx = x[:, None] - x[None, :]  # from j to i
+        dy = y[:, None] - y[None, :]
+        dist = np.sqrt(dx * dx + dy * dy)
         np.fill_diagonal(dist, np.inf)
-        normal = diff / np.maximum(dist, 1e-9)[:, :, None]
+        inv = 1.0 / np.maximum(dist, 1e-9)
         overlap = radii[:, None] + radii[None, :] - dist
-        mag = params.base_strength * np.exp(np.maximum(overlap / params.ped_range, _MIN_EXPONENT))
-        w = _anisotropy(heading[:, None, :], normal, params.anisotropy)
-        acc += k_p * np.sum((w * mag)[:, :, None] * normal, axis=1)
+        mag = params.base_strength * np.exp(np.maximum(overlap * (1.0 / params.ped_range), _MIN_EXPONENT))
+        # Anisotropy w(φ) = λ + (1 − λ)(1 + cos φ)/2 with cos φ = −heading · n_ij.
+        w = lam + (1.0 - lam) * 0.5 * (1.0 - (hx * dx + hy * dy) * inv)
+        f = w * mag * inv
+        acc[:, 0] += k_p * (f * dx).sum(axis=1)
+        acc[:, 1] += k_p * (f * dy).sum(axis=1)
 
     if vehicle_boxes.shape[0]:
-        px, py = positions[:, 0:1], positions[:, 1:2]
-        cx = np.clip(px, vehicle_boxes[None, :, 0], vehicle_boxes[None, :, 2])
-        cy = np.clip(py, vehicle_boxes[None, :, 1], vehicle_boxes[None, :, 3])
-        diff = np.stack([px - cx, py - cy], axis=2)
-        dist = _norm(diff)
-        normal = diff / np.maximum(dist, 1e-9)[:, :, None]
-        mag = params.base_strength * np.exp(np.maximum((radii[:, None] - dist) / params.vehicle_range, _MIN_EXPONENT))
-        mag = np.where(dist > 1e-9, mag, 0.0)  # inside the box: contact physics takes over
-        w = _anisotropy(heading[:, None, :], normal, params.anisotropy)
-        acc += params.vehicle_intensity * np.sum((w * mag)[:, :, None] * normal, axis=1)
+        px, py = x[:, None], y[:, None]
+        dx = px - np.minimum(np.maximum(px, vehicle_boxes[None, :, 0]), vehicle_boxes[None, :, 2])
+        dy = py - np.minimum(np.maximum(py, vehicle_boxes[None, :, 1]), vehicle_boxes[None, :, 3])
+        dist = np.sqrt(dx * dx + dy * dy)
+        inside = dist <= 1e-9  # inside the box: contact physics takes over
+        inv = np.where(inside, 0.0, 1.0 / np.maximum(dist, 1e-9))
+        mag = params.base_strength * np.exp(
+            np.maximum((radii[:, None] - dist) * (1.0 / params.vehicle_range), _MIN_EXPONENT)
+        )
+        w = lam + (1.0 - lam) * 0.5 * (1.0 - (hx * dx + hy * dy) * inv)
+        f = w * mag * inv
+        acc[:, 0] += params.vehicle_intensity * (f * dx).sum(axis=1)
+        acc[:, 1] += params.vehicle_intensity * (f * dy).sum(axis=1)
 
     south, north = kerbs
     y, r = positions[:, 1], radii

@@ -151,10 +151,11 @@ class SocialRecurrent(nn.Module):
             self.cell = nn.LSTMCell(in_size, c.hidden_size)
         self.head = nn.Linear(c.hidden_size, 5)
         if c.cv_residual:
-            # Start exactly at the constant-velocity model; training learns the correction.
+            # Start exactly at the constant-velocity model with unit-variance isotropic Gaussians; training
+            # learns the correction. (Random log-sigma outputs give NLL spikes of 1e4 that wreck the means.)
             with torch.no_grad():
-                self.head.weight[:2].zero_()
-                self.head.bias[:2].zero_()
+                self.head.weight.zero_()
+                self.head.bias.zero_()
 
     # ----------------------------------------------------------------- pooling
     def social_pool(
