@@ -116,6 +116,12 @@ class YieldingConfig(DrivingConfig):
     """Speed (m/s) at which the car passes a stationary vehicle standing beside it near a crossing, which
     may hide a pedestrian (UK Highway Code rule 191: do not overtake a vehicle stopped at a crossing;
     StVO §26: approach at moderate speed). At 3 m/s the car stops within about a metre."""
+    offer_timeout: float = 3.0
+    """After standing still at the line this long (s) for pedestrians who keep waiting at the kerb, the car
+    takes the offer as declined and goes (pedestrians on the crossing are still given way); matches
+    `MetricsConfig.offer_timeout`."""
+    dt: float = 0.1
+    """Time between calls (s), the env's `EnvConfig.dt`; used by the offer timer."""
     occlusion_window: float = 15.0
     """A stationary vehicle counts as an occluder if its front is within this distance (m) before the
     crossing's near edge (or on the crossing)."""
@@ -388,6 +394,32 @@ class YieldingPolicy:
 
     def __init__(self, config: YieldingConfig | None = None) -> None:
         self.config = config or YieldingConfig()
+        self._stopped = np.zeros(0)
+        self._declined = np.zeros(0, dtype=bool)
+
+    def reset(self) -> None:
+        """Forget the offer timers (call between episodes; they also reset by themselves, see below)."""
+        self._stopped = np.zeros(0)
+        self._declined = np.zeros(0, dtype=bool)
+
+    def _offer_state(self, view: _View, waiting_only: np.ndarray) -> np.ndarray:
+        """Update the per-batch-element offer timers; return which elements treat the offer as declined.
+
+        A timer runs while the car stands (< 0.1 m/s) within a few metres of the stop line and the only
+        reason to stand is a pedestrian waiting at the kerb. After `offer_timeout` the offer counts as
+        declined until the car has passed the crossing or is again far (> 20 m) before the line, which
+        also makes timers reset by themselves at the start of an episode in a vector env.
+        """
+        b = view.speed.shape[0]
+        if self._stopped.shape[0] != b:
+            self._stopped = np.zeros(b)
+            self._declined = np.zeros(b, dtype=bool)
+        fresh = (view.past >= 0.0) | (view.to_stop > 20.0)
+        self._declined &= ~fresh
+        standing = (view.speed < 0.1) & (view.to_stop < 3.0) & waiting_only
+        self._stopped = np.where(standing, self._stopped + self.config.dt, 0.0)
+        self._declined |= self._stopped >= self.config.offer_timeout - 1e-9
+        return self._declined.copy()
 
     def _targets(self, view: _View) -> tuple[np.ndarray, np.ndarray]:
         """(legal_target, conflict_target): stop distances (B,) ahead of the ego front, inf when none."""
@@ -420,9 +452,11 @@ class YieldingPolicy:
             likely = view.intention >= cfg.intention_threshold
             waiting = (waiting | (likely & view.present & ~view.on_road)) & likely
         zebra = view.zebra[:, None] > 0.5
-        legal = zebra & crossing_ahead & at_crossing & (on_xing | waiting)
+        legal_xing = (zebra & crossing_ahead & at_crossing & on_xing).any(axis=1)
+        legal_wait = (zebra & crossing_ahead & at_crossing & waiting).any(axis=1)
+        declined = self._offer_state(view, legal_wait & ~legal_xing)
         red = (view.zebra < 0.5) & (view.car_green < 0.5) & (view.past < 0.0)
-        needs_line = legal.any(axis=1) | red
+        needs_line = legal_xing | (legal_wait & ~declined) | red
         with np.errstate(divide="ignore", invalid="ignore"):
             a_req = np.where(line_target > 0.05, v * v / (2.0 * np.maximum(line_target, 0.05)), np.inf)
         can_stop = (a_req <= cfg.yield_max_deceleration) | (v < 0.5)

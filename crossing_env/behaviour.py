@@ -15,6 +15,10 @@
   the phase is a per-pedestrian trait drawn by the world). ``cos(theta) = 0`` gives exactly the classical
   mixture ``beta P(C | safe) + (1 - beta) P(C | unsafe)``.
 
+Hard floor: no look accepts a gap below ``min(gap_floor, critical_gap)`` (3 s by default, the floor of
+the calibration literature), so neither the logistic tail nor impatience sends a pedestrian in front of a
+car a second away; a distracted pedestrian's shortened critical gap lowers its own floor.
+
 What interference does with the default CPT: a negative cosine (destructive) cancels the "wait" score more
 than the "cross" score at intermediate beliefs, so such pedestrians take marginal gaps more readily (and
 are a little more careful when the gap is clearly too short); a positive cosine does the opposite.
@@ -59,8 +63,10 @@ class QuantumGapConfig:
     """Logistic scale (s) of the belief that the gap is safe around the critical gap; 0 gives a step."""
     p_cross_safe: float = 0.95
     """P(step off at one look | gap safe)."""
-    p_cross_unsafe: float = 0.001
-    """P(step off at one look | gap unsafe): impatience; per look, so small (about 0.2 % per second)."""
+    p_cross_unsafe: float = 0.0005
+    """P(step off at one look | gap unsafe): impatience; per look, so small (about 0.1 % per second)."""
+    gap_floor: float = 3.0
+    """No gap below ``min(gap_floor, critical_gap)`` is ever taken (calibration: hard floor about 3 s)."""
     decision_interval: float = 0.5
     """Seconds between two looks at the traffic; converts per-look probabilities into a per-step hazard."""
 
@@ -71,6 +77,8 @@ class QuantumGapConfig:
             v = getattr(self, name)
             if not 0.0 <= v <= 1.0:
                 raise ValueError(f"QuantumGapConfig.{name} must be in [0, 1], got {v}")
+        if not (np.isfinite(self.gap_floor) and self.gap_floor >= 0.0):
+            raise ValueError(f"QuantumGapConfig.gap_floor must be >= 0 seconds, got {self.gap_floor}")
         if not self.decision_interval > 0.0:
             raise ValueError(f"QuantumGapConfig.decision_interval must be > 0 s, got {self.decision_interval}")
 
@@ -124,14 +132,17 @@ class QuantumGapAcceptance:
     def classical_probability(self, gap: FloatArray, critical_gap: FloatArray) -> FloatArray:
         """Per-look crossing probability of the classical pedestrian (no interference), for comparison."""
         p1, p2, q1, q2 = self._joint(gap, critical_gap)
-        return (p1 + p2) / (p1 + p2 + q1 + q2)
+        return np.where(self._above_floor(gap, critical_gap), (p1 + p2) / (p1 + p2 + q1 + q2), 0.0)
+
+    def _above_floor(self, gap: FloatArray, critical_gap: FloatArray) -> BoolArray:
+        return np.asarray(gap) >= np.minimum(self.config.gap_floor, critical_gap)
 
     def look_probability(self, gap: FloatArray, critical_gap: FloatArray, phase: FloatArray) -> FloatArray:
         """Per-look crossing probability with interference (M&W 2016, Eq. 26, via `predictors.qlb`)."""
         p1, p2, q1, q2 = self._joint(gap, critical_gap)
         cos = np.cos(np.asarray(phase, dtype=np.float64))
         cos = np.where(np.abs(cos) < COS_ZERO_ATOL, 0.0, cos)
-        return interference_probability(p1, p2, q1, q2, cos)
+        return np.where(self._above_floor(gap, critical_gap), interference_probability(p1, p2, q1, q2, cos), 0.0)
 
     def probability(self, context: DecisionContext) -> FloatArray:
         """Per-step probability of starting to cross, 0 for pedestrians facing red who are not violators."""

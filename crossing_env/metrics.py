@@ -575,7 +575,8 @@ class EpisodeMetrics:
       is open; it ends compliant when the pedestrian, having entered the ego's half, is outside it again
       (crossed or turned back), or when the ego has stood still within `offer_distance` of the stop line
       for `offer_timeout` while the pedestrian kept waiting (declined offer); it is dropped (not counted)
-      if the pedestrian stops waiting without ever entering the ego's half. Obligations still open at the
+      if the pedestrian leaves the kerb without crossing (state neither `WAITING` nor `CROSSING`, centre
+      off the road) before entering the ego's half. Obligations still open at the
       end count as compliant. The German "influenced" test (pedestrian forced to slow down) is not
       applied: it would need the pedestrian's desired speed, which the ground truth does not carry.
     - Delay: from t = 0 at `EgoConfig.x` until the ego centre passes `conflict_area.x_max + delay_margin`
@@ -900,7 +901,9 @@ class EpisodeMetrics:
         # Resolve open obligations from the pedestrians' side.
         entered_half = tab.entered_half[rows] | (open_ & in_half)
         cleared = open_ & entered_half & ~in_half
-        dropped = open_ & ~(entered_half | waiting | gt.on_road)
+        states = gt.pedestrian_states
+        gave_up = (states != _WAITING) & (states != _CROSSING) & ~gt.on_road  # walked off, never stepped on
+        dropped = open_ & ~entered_half & gave_up
         status = np.where(cleared, _COMPLIANT, np.where(dropped, _WAIVED, status))
 
         # Declined offers: the ego stands just before the stop line while the pedestrian keeps waiting.

@@ -30,6 +30,8 @@ KERB_STANDOFF = 0.45
 """Distance in metres from the kerb line at which a waiting pedestrian stands."""
 ARRIVAL_TOLERANCE = 0.35
 """Distance in metres at which a waypoint counts as reached."""
+KERB_ARRIVAL = (1.2, 0.6)
+"""(along x, across y) metres within which a pedestrian heading for a kerb point counts as arrived at it."""
 GROUP_MAX_WAIT = 8.0
 """Seconds a group member at the kerb waits for companions still walking up before deciding alone."""
 
@@ -278,6 +280,15 @@ class PedestrianPopulation:
         dist = np.linalg.norm(self.waypoint - self.position, axis=1)
         arrived = dist < ARRIVAL_TOLERANCE
         st = self.state
+        # In a crowd the exact kerb point may be taken by someone else: close to it along the kerb counts,
+        # and a crossing ends once the far kerb is passed (otherwise crowds at the zebra deadlock).
+        y = self.position[:, 1]
+        near_kerb = (np.abs(y - self.waypoint[:, 1]) < KERB_ARRIVAL[1]) & (
+            np.abs(self.position[:, 0] - self.waypoint[:, 0]) < KERB_ARRIVAL[0]
+        )
+        arrived |= (st == APPROACHING) & self.intends & near_kerb
+        past_far_kerb = np.where(self.side > 0, y > self.geometry.kerb_north, y < self.geometry.kerb_south)
+        arrived |= (st == CROSSING) & past_far_kerb
         # Each transition applies to the state held at the start of the step (one transition per step),
         # because `arrived` refers to the waypoint of that state.
         before = st.copy()

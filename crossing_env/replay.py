@@ -516,13 +516,21 @@ def _dashes(x0: float, x1: float, y: float, dash: float = 3.0, gap: float = 6.0)
     )
 
 
-def episode_blueprint(scenario: ScenarioConfig) -> Any:
-    """Viewer layout: the road around the crossing on top, metrics and events below."""
+def episode_blueprint(scenario: ScenarioConfig, intention: bool = False) -> Any:
+    """Viewer layout: the road around the crossing on top, metrics and events below.
+
+    The side panels start collapsed so the road gets the room; the intention plot appears only when the
+    observation holds ``crossing_intention``.
+    """
     import rerun.blueprint as rrb
 
     road = scenario.road
     x = scenario.crossing.position
     margin = road.sidewalk_width + 1.0
+    plots: list[Any] = [rrb.TimeSeriesView(origin="/metrics", name="safety")]
+    if intention:
+        plots.append(rrb.TimeSeriesView(origin="/intention", name="crossing intention"))
+    plots.append(rrb.TextLogView(origin="/events", name="events"))
     return rrb.Blueprint(
         rrb.Vertical(
             rrb.Spatial2DView(
@@ -530,17 +538,15 @@ def episode_blueprint(scenario: ScenarioConfig) -> Any:
                 name="crossing",
                 background=(40, 44, 40),
                 visual_bounds=rrb.VisualBounds2D(
-                    x_range=[x - 45.0, x + 45.0], y_range=[-margin - 8.0, road.road_width + margin + 8.0]
+                    x_range=[x - 35.0, x + 35.0], y_range=[-margin - 6.0, road.road_width + margin + 6.0]
                 ),
             ),
-            rrb.Horizontal(
-                rrb.TimeSeriesView(origin="/metrics", name="safety"),
-                rrb.TimeSeriesView(origin="/intention", name="crossing intention"),
-                rrb.TextLogView(origin="/events", name="events"),
-            ),
+            rrb.Horizontal(*plots),
             row_shares=[3, 2],
         ),
-        rrb.TimePanel(timeline="sim_time"),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(timeline="sim_time", state="collapsed"),
     )
 
 
@@ -583,7 +589,6 @@ class EpisodeRecorder:
                 walks,
                 radii=sw / 2,
                 colors=(125, 120, 110),
-                labels=["south sidewalk", "north sidewalk"],
                 draw_order=1.0,
             ),
             static=True,
@@ -761,6 +766,7 @@ class EpisodeRecorder:
                     radii=0.06,
                     colors=PREDICTION_COLOUR,
                     labels=[str(i) for i in rec_ids],
+                    show_labels=False,
                     draw_order=8.0,
                 ),
             )
@@ -816,7 +822,9 @@ def record_episode(
         taken: list[np.ndarray] = []
         gts: list[GroundTruth] = []
         collisions = 0
-        with open_recording(out, rid, episode_blueprint(base.scenario)) as rec:
+        with open_recording(
+            out, rid, episode_blueprint(base.scenario, "crossing_intention" in env.observation_space.spaces)
+        ) as rec:
             rec.send_recording_name(f"{name} · policy {policy} · seed {seed}")
             recorder = EpisodeRecorder(rec, base.scenario, base.config.dt)
             recorder.log_static()
@@ -1178,6 +1186,104 @@ def open_viewer(path: Path) -> subprocess.Popen[bytes]:
     return subprocess.Popen([exe, str(path)], start_new_session=True)
 
 
+def _shrink_png(src: Path, max_bytes: int) -> None:
+    """Quantise (and if needed downscale) a PNG in place until it is under `max_bytes`."""
+    from PIL import Image
+
+    with Image.open(src) as im:
+        image = im.convert("RGB")
+    scale = 1.0
+    while True:
+        size = (max(1, int(image.width * scale)), max(1, int(image.height * scale)))
+        small = image.resize(size, Image.Resampling.LANCZOS) if scale < 1.0 else image
+        small.quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(src, optimize=True)
+        if src.stat().st_size <= max_bytes or scale < 0.2:
+            return
+        scale *= 0.8
+
+
+def screenshot(
+    rrd: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    time_s: float,
+    size: tuple[int, int] = (1600, 900),
+    port: int = 9877,
+    max_bytes: int = 500_000,
+    settle_s: float = 11.0,
+) -> Path:
+    """Screenshot of the whole viewer showing `rrd` at ``sim_time = time_s``, without a display.
+
+    Runs the viewer headless (needs a Vulkan driver; on a CPU-only Linux box Mesa's lavapipe from
+    ``mesa-vulkan-drivers``), drives it through the experimental `rerun.experimental.ViewerClient`, waits
+    `settle_s` for the start-up notices to fade, then writes a PNG of at most `max_bytes` (atomically).
+    """
+    import time
+
+    from rerun.experimental import ViewerClient
+
+    src, dst = Path(rrd).resolve(), Path(out)
+    if not src.is_file():
+        raise ReplayError(f"recording not found: {src}")
+    if dst.suffix != ".png" or not dst.parent.is_dir():
+        raise ReplayError(f"--out {str(dst)!r}: must be a .png in an existing folder")
+    exe = viewer_executable()
+    if exe is None:
+        raise ReplayError("the rerun viewer binary was not found (is rerun-sdk installed?)")
+    env = dict(os.environ, CI="true", WGPU_BACKEND=os.environ.get("WGPU_BACKEND", "vulkan"))
+    cmd = [
+        exe,
+        "--headless",
+        "--hide-welcome-screen",
+        "--window-size",
+        f"{size[0]}x{size[1]}",
+        "--port",
+        str(port),
+    ]
+    viewer = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    fd, tmp = tempfile.mkstemp(prefix=f".{dst.name}.", suffix=".png", dir=dst.resolve().parent)
+    os.close(fd)
+    os.unlink(tmp)
+    try:
+        client = None
+        for _ in range(150):
+            if viewer.poll() is not None:
+                raise ReplayError(
+                    f"viewer exited with code {viewer.returncode} (port {port} in use? no Vulkan?)"
+                )
+            try:
+                client = ViewerClient.connect(f"rerun+http://127.0.0.1:{port}/proxy")
+                client.get_state()
+                break
+            except Exception:  # the server is not up yet
+                client = None
+                time.sleep(0.2)
+        if client is None:
+            raise ReplayError(f"could not connect to the viewer on port {port}")
+        client.open(str(src))
+        time.sleep(settle_s)
+        client.set_time("sim_time", duration=float(time_s), play_state="paused")
+        time.sleep(1.0)
+        client.save_screenshot(tmp)
+        for _ in range(100):
+            if os.path.exists(tmp) and os.path.getsize(tmp) > 0:
+                break
+            time.sleep(0.1)
+        else:
+            raise ReplayError("the viewer wrote no screenshot")
+        _shrink_png(Path(tmp), max_bytes)
+        _default_permissions(tmp)
+        os.replace(tmp, dst)
+    finally:
+        viewer.terminate()
+        try:
+            viewer.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            viewer.kill()
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return dst
+
+
 def _non_negative_int(text: str) -> int:
     try:
         value = int(text)
@@ -1225,6 +1331,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--max-frames", type=_positive_int, default=None, help="number of frames to replay")
     s.add_argument("--out", required=True, help="output .rrd")
     s.add_argument("--view", action="store_true", help="open the recording in the rerun viewer")
+    g = sub.add_parser("screenshot", help="PNG of the viewer showing a recording (headless, needs Vulkan)")
+    g.add_argument("rrd", help="recording (.rrd)")
+    g.add_argument("--out", required=True, help="output .png")
+    g.add_argument("--time", type=float, default=0.0, help="sim_time to show, seconds")
+    g.add_argument("--port", type=_positive_int, default=9877, help="gRPC port of the headless viewer")
+    g.add_argument("--max-kb", type=_positive_int, default=500, help="downscale until the PNG is this small")
     return p
 
 
@@ -1263,6 +1375,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                     file=sys.stderr,
                 )
                 status = 1
+        elif args.command == "screenshot":
+            shot = screenshot(args.rrd, args.out, args.time, port=args.port, max_bytes=args.max_kb * 1000)
+            print(f"wrote {shot} ({shot.stat().st_size // 1000} kB)")
+            return 0
         else:
             sc = record_scene(
                 args.out, args.dataset, args.data, args.file, args.model, args.start_frame, args.max_frames

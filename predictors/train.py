@@ -47,21 +47,21 @@ class TrainConfig:
     """Model kind: s-cgru, s-gru, s-lstm or lstm."""
     scene: str = "all"
     """Leave-one-out scene (eth, hotel, univ, zara1, zara2), ``sdd``, or ``all`` (every ETH/UCY recording)."""
-    epochs: int = 5
-    """Maximum number of epochs."""
+    epochs: int = 20
+    """Maximum number of epochs (an epoch is ``train_fraction`` of the training windows)."""
     seed: int = 0
     """Seed of torch and of the numpy generator that shuffles and rotates batches."""
     data: str = ""
-    """Data root with ``eth_ucy/`` and ``sdd/`` (default ``$CROSSING_DATA``, else ``<repo>/../shared/data``)."""
+    """Data root with ``eth_ucy/`` and ``sdd/`` (default: ``$CROSSING_DATA`` or ``../shared/data``)."""
     out: str = ""
     """Checkpoint path (default ``predictors/weights/<model>_<scene>.pt``)."""
     lr: float = 1e-3
     """Adam learning rate."""
     batch_peds: int = 256
     """Pedestrian budget per batch (whole windows)."""
-    train_fraction: float = 1.0
+    train_fraction: float = 0.5
     """Fraction of training windows drawn (without replacement) each epoch, to fit a CPU budget."""
-    max_minutes: float = 0.0
+    max_minutes: float = 3.0
     """Wall-clock budget for the whole run (0 = none); training stops after the epoch that exceeds it."""
     fov_deg: float = 120.0
     """Field of view of S-CGRU's pooling sector, degrees."""
@@ -69,7 +69,11 @@ class TrainConfig:
     """Gradient-norm clip."""
     threads: int = 1
     """torch intra-op threads (1 on the shared 2-core machine)."""
-    cv_residual: int = 0
+    hidden_size: int = 64
+    """Real width of the recurrent state (S-CGRU: twice its complex units); the paper uses 128."""
+    embed_size: int = 32
+    """Width of the displacement and social-tensor embeddings; the paper uses 64."""
+    cv_residual: int = 1
     """1: learned models predict a correction to the last displacement (constant-velocity prior)."""
     teacher_forcing: int = 0
     """1: feed the ground truth back during the future steps (Social-LSTM); 0: feed the predicted means."""
@@ -183,9 +187,13 @@ def train(cfg: TrainConfig) -> Path:
     root = Path(cfg.data) if cfg.data else default_data_root()
     train_w, val_w = load_training_data(root, cfg.scene)
     out = Path(cfg.out) if cfg.out else WEIGHTS_DIR / f"{cfg.model}_{cfg.scene}.pt"
-    model = SocialRecurrent(
-        replace(default_config(cfg.model, cfg.fov_deg), cv_residual=bool(cfg.cv_residual))
+    mcfg = replace(
+        default_config(cfg.model, cfg.fov_deg),
+        hidden_size=cfg.hidden_size,
+        embed_size=cfg.embed_size,
+        cv_residual=bool(cfg.cv_residual),
     )
+    model = SocialRecurrent(mcfg)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
     best = (float("inf"), float("inf"))
     best_epoch, t0, windows_seen = -1, time.time(), 0

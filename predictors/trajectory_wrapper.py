@@ -9,6 +9,8 @@ Contract with the base env: its observation space is a ``spaces.Dict`` with
 The wrapper adds ``"predicted_paths"`` ``(K, 12, 2)`` (most-likely path, same frame, zeros for absent slots)
 and, with ``num_samples > 0``, ``"predicted_samples"`` ``(K, S, 12, 2)``. All present pedestrians form one
 window, so the social pooling sees every present neighbour. Predictions are clipped to the declared bounds.
+The most-likely path runs through :class:`~predictors.fast_inference.FastPredictor` (NumPy, same numbers as
+the torch model) to stay within the per-step budget; samples run through the torch model.
 Samples come from a private ``torch.Generator`` reseeded from the ``reset`` seed (seed 0 until the first
 seeded reset), never from a global RNG.
 """
@@ -25,6 +27,7 @@ from gymnasium import spaces
 
 from predictors.baselines import cvm, cvm_samples
 from predictors.data import OBS_LEN, PRED_LEN
+from predictors.fast_inference import FastPredictor
 from predictors.models import MODEL_KINDS, SocialRecurrent
 from predictors.train import WEIGHTS_DIR, load_model
 
@@ -66,6 +69,7 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
         self.num_slots = hist.shape[0]
         self.num_samples = num_samples
         self.model = resolve_model(model)
+        self._fast = FastPredictor(self.model) if isinstance(self.model, SocialRecurrent) else None
         bound = float(max(np.abs(hist.low).max(), np.abs(hist.high).max())) + PRED_LEN * MAX_STEP
         self.bound = np.float32(bound) if np.isfinite(bound) else np.float32(np.finfo(np.float32).max)
         new = dict(space.spaces)
@@ -99,7 +103,8 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
             paths = cvm(obs)
             samples = cvm_samples(obs, self.num_samples, self._generator) if self.num_samples else None
         else:
-            paths = self.model.predict(obs, sse)
+            assert self._fast is not None
+            paths = torch.from_numpy(self._fast.predict(obs.numpy()))
             samples = (
                 self.model.sample(obs, sse, self.num_samples, self._generator) if self.num_samples else None
             )

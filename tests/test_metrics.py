@@ -491,6 +491,8 @@ def test_yield_compliant_after_pedestrian_clears() -> None:
     m = metrics()
     # ego at 50 (front 52.25), 10 m/s: 62.75 m to the stop line > 10²/(2·3) = 16.7 m -> obligation opens
     _ego_through(m, 0.1, 50.0, [Ped(1, (120.0, -0.5), state=PedState.WAITING)])
+    # stepping off: state CROSSING while the centre is still over the sidewalk must not drop the obligation
+    _ego_through(m, 1.0, 60.0, [Ped(1, (120.0, -0.2), (0, 1.3), state=PedState.CROSSING)])
     _ego_through(m, 2.0, 70.0, [Ped(1, (120.0, 1.0), (0, 1.3))])  # in the ego's half
     _ego_through(m, 4.0, 90.0, [Ped(1, (120.0, 4.0), (0, 1.3))])  # cleared it (y > 3.5)
     _ego_through(m, 5.0, 118.0, [Ped(1, (120.0, 5.5), (0, 1.3))])  # ego in the conflict area: fine

@@ -178,3 +178,22 @@ def test_config_validation() -> None:
         ModelConfig(kind="s-gru", fov_deg=90.0)  # sector needs the heading frame
     with pytest.raises(ValueError, match="even"):
         ModelConfig(kind="s-cgru", hidden_size=7, pool_frame="heading")
+
+
+@pytest.mark.parametrize("kind", MODEL_KINDS)
+def test_numpy_fast_path_matches_torch(kind: str) -> None:
+    from dataclasses import replace
+
+    from predictors.fast_inference import FastPredictor
+
+    torch.manual_seed(1)
+    cfg = replace(default_config(kind), hidden_size=16, embed_size=8, cv_residual=True)
+    m = SocialRecurrent(cfg).eval()
+    with torch.no_grad():
+        for p in m.head.parameters():
+            p.normal_(0.0, 0.1)
+        obs, _, _ = _scene(1, seed=5)
+        obs = obs * 0.5  # keep neighbours inside the 4 m grid so pooling matters
+        ref = m.predict(obs, torch.tensor([[0, obs.shape[0]]])).numpy()
+    got = FastPredictor(m).predict(obs.numpy())
+    assert abs(got - ref).max() < 1e-4
