@@ -145,8 +145,10 @@ def _warn_once(message: str) -> None:
 
 
 def build_env(scenario: str, predictor: str = "none", intention: str = "none") -> tuple[Any, list[str]]:
-    """The env for a scenario with the requested wrappers; missing predictor modules are skipped with a
-    message (the record then lists which wrappers were really used)."""
+    """The env for a scenario with the requested wrappers.
+
+    Missing predictor modules are skipped with a message; the record then lists which wrappers were used.
+    """
     import gymnasium as gym
 
     import crossing_env
@@ -200,8 +202,7 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
 
     env, used = _cached_env(task)
     base = env.unwrapped
-    extra = {"dt": base.config.dt} if task.policy in ("yielding", "always_cautious") else {}
-    policy = make_policy(task.policy, scenario=base.scenario, **extra)
+    policy = make_policy(task.policy, scenario=base.scenario, dt=base.config.dt)
     obs, info = env.reset(seed=task.seed)
     metrics = EpisodeMetrics(base.scenario, base.config.dt)
     actions: list[float] = []
@@ -219,7 +220,9 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
     )
 
 
-def _run_local(tasks: Sequence[EpisodeTask], workers: int, progress: Callable[[], None]) -> list[EpisodeRecord]:
+def _run_local(
+    tasks: Sequence[EpisodeTask], workers: int, progress: Callable[[], None]
+) -> list[EpisodeRecord]:
     if workers <= 1:
         out = []
         for t in tasks:
@@ -243,8 +246,7 @@ def _run_ray(
         import ray
     except ImportError as exc:
         raise SystemExit(
-            "crossing-eval: --backend ray needs the optional extra: pip install 'crossing-env[ray]' "
-            f"({exc})"
+            f"crossing-eval: --backend ray needs the optional extra: pip install 'crossing-env[ray]' ({exc})"
         ) from exc
     started = False
     if not ray.is_initialized():
@@ -308,10 +310,29 @@ TABLE_COLUMNS = (
 )
 
 CSV_EPISODE_FIELDS = (
-    "scenario", "policy", "episode", "seed", "collision", "pedestrian_collisions", "vehicle_collisions",
-    "max_impact_speed", "min_ttc", "min_separation", "min_pet_pedestrian_first", "min_pet_ego_first",
-    "max_drac_crossing", "hard_braking_events", "max_deceleration", "yield_obligations", "yield_compliant",
-    "yield_violations", "passed_crossing", "delay", "time_to_pass", "distance_travelled", "duration",
+    "scenario",
+    "policy",
+    "episode",
+    "seed",
+    "collision",
+    "pedestrian_collisions",
+    "vehicle_collisions",
+    "max_impact_speed",
+    "min_ttc",
+    "min_separation",
+    "min_pet_pedestrian_first",
+    "min_pet_ego_first",
+    "max_drac_crossing",
+    "hard_braking_events",
+    "max_deceleration",
+    "yield_obligations",
+    "yield_compliant",
+    "yield_violations",
+    "passed_crossing",
+    "delay",
+    "time_to_pass",
+    "distance_travelled",
+    "duration",
 )
 
 
@@ -350,22 +371,29 @@ def format_table(summary: dict[str, Any], policies: Sequence[str]) -> str:
     for name, agg in entries:
         lo, hi = agg["collision_ci95"]
         comp = agg["yield_compliance"]
-        rows.append([
-            name,
-            str(agg["episodes"]),
-            f"{agg['collision_rate']:.3f} [{lo:.3f}, {hi:.3f}]",
-            f"{_fmt(agg['min_ttc_p5'])}/{_fmt(agg['min_ttc_p50'])}",
-            _fmt(agg["pet_pedestrian_first_p5"]),
-            _fmt(agg["drac_crossing_mean"]),
-            _fmt(agg["hard_brakes_per_episode"]),
-            f"{_fmt(comp, 3)} ({agg['yield_obligations']})",
-            _fmt(agg["mean_delay"]),
-            _fmt(agg["pass_rate"]),
-        ])
+        rows.append(
+            [
+                name,
+                str(agg["episodes"]),
+                f"{agg['collision_rate']:.3f} [{lo:.3f}, {hi:.3f}]",
+                f"{_fmt(agg['min_ttc_p5'])}/{_fmt(agg['min_ttc_p50'])}",
+                _fmt(agg["pet_pedestrian_first_p5"]),
+                _fmt(agg["drac_crossing_mean"]),
+                _fmt(agg["hard_brakes_per_episode"]),
+                f"{_fmt(comp, 3)} ({agg['yield_obligations']})",
+                _fmt(agg["mean_delay"]),
+                _fmt(agg["pass_rate"]),
+            ]
+        )
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     lines = []
     for i, row in enumerate(rows):
-        lines.append("  ".join(cell.ljust(w) if j == 0 else cell.rjust(w) for j, (cell, w) in enumerate(zip(row, widths, strict=True))))
+        lines.append(
+            "  ".join(
+                cell.ljust(w) if j == 0 else cell.rjust(w)
+                for j, (cell, w) in enumerate(zip(row, widths, strict=True))
+            )
+        )
         if i == 0:
             lines.append("  ".join("-" * w for w in widths))
     return "\n".join(lines)
@@ -394,7 +422,9 @@ def _csv_text(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     return buf.getvalue()
 
 
-def _plot(records: Sequence[EpisodeRecord], summary: dict[str, Any], policies: Sequence[str], out: Path) -> None:
+def _plot(
+    records: Sequence[EpisodeRecord], summary: dict[str, Any], policies: Sequence[str], out: Path
+) -> None:
     """Safety-vs-efficiency scatter and min-TTC distributions as PNG (written atomically)."""
     import matplotlib
 
@@ -424,11 +454,14 @@ def _plot(records: Sequence[EpisodeRecord], summary: dict[str, Any], policies: S
     cap = 10.0
     bins = np.linspace(0.0, cap, 21)
     for name in names:
-        vals = np.array([
-            r.result["min_ttc"] if r.result["min_ttc"] is not None else np.inf
-            for r in records
-            if r.task.policy == name
-        ], dtype=np.float64)
+        vals = np.array(
+            [
+                r.result["min_ttc"] if r.result["min_ttc"] is not None else np.inf
+                for r in records
+                if r.task.policy == name
+            ],
+            dtype=np.float64,
+        )
         ax.hist(np.minimum(vals, cap), bins=bins, histtype="step", linewidth=1.5, label=name)
     ax.axvline(1.5, color="red", linestyle="--", linewidth=1, label="serious conflict (1.5 s)")
     ax.set_xlabel(f"episode minimum TTC to a pedestrian (s; ≥ {cap:g} and 'never' in the last bin)")
@@ -467,7 +500,11 @@ def save_worst(records: Sequence[EpisodeRecord], out: Path, n: int = WORST_EPISO
         t = rec.task
         name = f"{rank:02d}_{Path(t.scenario).stem}_{t.policy}_ep{t.episode}.json"
         meta = {"rank": rank, "episode": t.episode, "metrics": rec.result, "predictors": rec.predictors}
-        predictor = t.predictor if t.predictor != "none" and any(p.startswith("trajectory") for p in rec.predictors) else None
+        predictor = (
+            t.predictor
+            if t.predictor != "none" and any(p.startswith("trajectory") for p in rec.predictors)
+            else None
+        )
         try:
             from crossing_env.replay import save_episode_log
         except ImportError:
@@ -521,21 +558,30 @@ def write_outputs(
             for r in records
         ],
     }
-    _atomic_write_bytes(out / "results.json", (json.dumps(doc, indent=1, sort_keys=True) + "\n").encode("utf-8"))
+    _atomic_write_bytes(
+        out / "results.json", (json.dumps(doc, indent=1, sort_keys=True) + "\n").encode("utf-8")
+    )
 
     rows = []
     for r in records:
         res = r.result
-        rows.append([
-            r.task.scenario, r.task.policy, r.task.episode, r.task.seed,
-            *(_csv_value(res[f]) for f in CSV_EPISODE_FIELDS[4:]),
-        ])
+        rows.append(
+            [
+                r.task.scenario,
+                r.task.policy,
+                r.task.episode,
+                r.task.seed,
+                *(_csv_value(res[f]) for f in CSV_EPISODE_FIELDS[4:]),
+            ]
+        )
     _atomic_write_bytes(out / "episodes.csv", _csv_text(CSV_EPISODE_FIELDS, rows).encode("utf-8"))
 
     keys = [k for k in summary["overall"] if not isinstance(summary["overall"][k], tuple | list)]
     srows = []
-    for name, agg in [*((p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]),
-                      ("overall", summary["overall"])]:
+    for name, agg in [
+        *((p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]),
+        ("overall", summary["overall"]),
+    ]:
         lo, hi = agg["collision_ci95"]
         srows.append([name, *(_csv_value(agg[k]) for k in keys), _csv_value(lo), _csv_value(hi)])
     header = ["policy", *keys, "collision_ci95_low", "collision_ci95_high"]
@@ -543,8 +589,14 @@ def write_outputs(
 
     _plot(records, summary, policies, out)
     worst = save_worst(records, out)
-    return ["results.json", "episodes.csv", "summary.csv", "safety_vs_efficiency.png", "min_ttc.png",
-            *(f"worst/{w}" for w in worst)]
+    return [
+        "results.json",
+        "episodes.csv",
+        "summary.csv",
+        "safety_vs_efficiency.png",
+        "min_ttc.png",
+        *(f"worst/{w}" for w in worst),
+    ]
 
 
 def _csv_value(x: Any) -> Any:
@@ -558,6 +610,14 @@ def _csv_value(x: Any) -> Any:
 # ---------------------------------------------------------------------------------------------------------
 # Command line
 # ---------------------------------------------------------------------------------------------------------
+
+
+def default_workers() -> int:
+    """CPUs this process may use (results do not depend on it)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return max(1, os.cpu_count() or 1)
 
 
 def _positive_int(text: str) -> int:
@@ -590,25 +650,58 @@ def build_parser() -> argparse.ArgumentParser:
         prog="crossing-eval",
         description="Evaluate driving policies on crossing scenarios (safety and efficiency metrics).",
     )
-    parser.add_argument("--scenarios", type=_names, default=None,
-                        help="comma-separated built-in names or scenario files (default: all built-in)")
-    parser.add_argument("--policies", type=_names, default=None,
-                        help="comma-separated policy names (default: all): see agents.POLICIES")
-    parser.add_argument("--episodes", type=_positive_int, default=DEFAULT_EPISODES,
-                        help=f"episodes (seeds) per scenario and policy (default {DEFAULT_EPISODES})")
+    parser.add_argument(
+        "--scenarios",
+        type=_names,
+        default=None,
+        help="comma-separated built-in names or scenario files (default: all built-in)",
+    )
+    parser.add_argument(
+        "--policies",
+        type=_names,
+        default=None,
+        help="comma-separated policy names (default: all): see agents.POLICIES",
+    )
+    parser.add_argument(
+        "--episodes",
+        type=_positive_int,
+        default=DEFAULT_EPISODES,
+        help=f"episodes (seeds) per scenario and policy (default {DEFAULT_EPISODES})",
+    )
     parser.add_argument("--seed", type=_int, default=DEFAULT_SEED, help=f"base seed (default {DEFAULT_SEED})")
-    parser.add_argument("--workers", type=_positive_int, default=1,
-                        help="parallel worker processes (local) or CPUs for a fresh local Ray (default 1)")
-    parser.add_argument("--out", type=Path, default=Path(DEFAULT_OUT),
-                        help=f"output folder (default ./{DEFAULT_OUT})")
-    parser.add_argument("--backend", choices=("local", "ray"), default="local",
-                        help="run episodes in local processes or as Ray tasks (needs the 'ray' extra)")
-    parser.add_argument("--address", default=None,
-                        help="Ray cluster address ('auto', 'host:port', 'ray://host:10001'); default: a fresh local Ray")
-    parser.add_argument("--predictor", choices=PREDICTOR_CHOICES, default="s-cgru",
-                        help="trajectory predictor wrapper for policies that use predictions (default s-cgru)")
-    parser.add_argument("--intention", choices=INTENTION_CHOICES, default="qlb",
-                        help="crossing-intention wrapper for policies that use predictions (default qlb)")
+    parser.add_argument(
+        "--workers",
+        type=_positive_int,
+        default=default_workers(),
+        help="parallel worker processes (local) or CPUs for a fresh local Ray"
+        f" (default: the CPUs available, here {default_workers()})",
+    )
+    parser.add_argument(
+        "--out", type=Path, default=Path(DEFAULT_OUT), help=f"output folder (default ./{DEFAULT_OUT})"
+    )
+    parser.add_argument(
+        "--backend",
+        choices=("local", "ray"),
+        default="local",
+        help="run episodes in local processes or as Ray tasks (needs the 'ray' extra)",
+    )
+    parser.add_argument(
+        "--address",
+        default=None,
+        help="Ray cluster address ('auto', 'host:port', 'ray://host:10001'); default: a fresh local Ray",
+    )
+    parser.add_argument(
+        "--predictor",
+        choices=PREDICTOR_CHOICES,
+        default="s-cgru",
+        help="trajectory predictor wrapper for policies that use predictions (default s-cgru)",
+    )
+    parser.add_argument(
+        "--intention",
+        choices=INTENTION_CHOICES,
+        default="qlb",
+        help="crossing-intention wrapper for policies that use predictions (default qlb)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
 
@@ -625,8 +718,8 @@ def _resolve_scenarios(parser: argparse.ArgumentParser, names: list[str] | None)
             out.append(name)
         else:
             parser.error(
-                f"argument --scenarios: unknown scenario {name!r} (not built-in and not an existing .toml file);"
-                f" built-in: {', '.join(sorted(builtin))}"
+                f"argument --scenarios: unknown scenario {name!r} (not built-in and not an existing"
+                f" .toml file); built-in: {', '.join(sorted(builtin))}"
             )
     return sorted(dict.fromkeys(out))
 
@@ -656,7 +749,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             import ray  # noqa: F401
         except ImportError:
-            parser.error("argument --backend: 'ray' needs the optional extra: pip install 'crossing-env[ray]'")
+            parser.error(
+                "argument --backend: 'ray' needs the optional extra: pip install 'crossing-env[ray]'"
+            )
 
     tasks = make_tasks(scenarios, policies, args.episodes, args.seed, args.predictor, args.intention)
     print(

@@ -59,9 +59,13 @@ class DrivingConfig:
     half_right: float = -1.75
     """Lateral offset (m, ego frame, negative = right) of the outer edge of the ego's half of the road."""
     half_left: float = 1.75
-    """Lateral offset (m) of the inner edge of the ego's half of the road (the centre line on two-way roads)."""
+    """Lateral offset (m) of the inner edge of the ego's half of the road (centre line on two-way roads)."""
     stop_line_offset: float = 3.0
     """Distance (m) from the stop line to the crossing's near edge (`CrosswalkConfig.stop_line_offset`)."""
+    road_right: float = -1.75
+    """Lateral offset (m, ego frame) of the right-hand (south) kerb."""
+    road_left: float = 5.25
+    """Lateral offset (m, ego frame) of the left-hand (north) kerb."""
     cruise_gain: float = 0.8
     """Proportional gain (1/s) of the speed controller towards the cruising speed."""
     cruise_acceleration: float = 1.5
@@ -86,7 +90,8 @@ class YieldingConfig(DrivingConfig):
     """Parameters of `YieldingPolicy` (see its docstring for the decision rules)."""
 
     comfortable_deceleration: float = 2.5
-    """Deceleration (m/s²) of a planned stop; the car brakes as late as this allows (−2…−3 m/s² is comfortable)."""
+    """Deceleration (m/s²) of a planned stop; the car brakes as late as this allows (−2…−3 m/s² is
+    comfortable)."""
     yield_max_deceleration: float = 4.0
     """A legal yield (zebra, red light) is attempted only if stopping before the line needs at most this
     (m/s²); beyond it the car cannot stop in time and only the conflict check below applies."""
@@ -105,6 +110,11 @@ class YieldingConfig(DrivingConfig):
     """Acceleration (m/s²) assumed when asking "if I go now, when do I pass?" from a low speed."""
     kerb_margin: float = 1.5
     """A waiting pedestrian is yielded to if it stands within the crossing's extent ± this margin (m)."""
+    kerb_distance: float = 2.0
+    """A slow pedestrian on the sidewalk this close (m) to a kerb at the crossing counts as waiting, even
+    when the observation's stricter `waiting` flag (1.2 m, 0.3 m/s) is off: people waiting shuffle about."""
+    waiting_speed: float = 0.5
+    """Speed (m/s) below which a pedestrian near the kerb counts as waiting."""
     intention_threshold: float = 0.5
     """With `crossing_intention` in the observation, waiting pedestrians below this probability are not
     yielded to (the point of the intention predictor: less needless stopping)."""
@@ -116,10 +126,10 @@ class YieldingConfig(DrivingConfig):
     """Speed (m/s) at which the car passes a stationary vehicle standing beside it near a crossing, which
     may hide a pedestrian (UK Highway Code rule 191: do not overtake a vehicle stopped at a crossing;
     StVO §26: approach at moderate speed). At 3 m/s the car stops within about a metre."""
-    offer_timeout: float = 3.0
+    offer_timeout: float = 3.5
     """After standing still at the line this long (s) for pedestrians who keep waiting at the kerb, the car
-    takes the offer as declined and goes (pedestrians on the crossing are still given way); matches
-    `MetricsConfig.offer_timeout`."""
+    takes the offer as declined and goes (pedestrians on the crossing are still given way); half a second
+    more than `MetricsConfig.offer_timeout` (3 s), so the car never leaves before an offer counts as made."""
     dt: float = 0.1
     """Time between calls (s), the env's `EnvConfig.dt`; used by the offer timer."""
     occlusion_window: float = 15.0
@@ -248,7 +258,9 @@ def _finish(accel: np.ndarray, view: _View, cfg: DrivingConfig) -> np.ndarray:
 def _cruise(view: _View, cfg: DrivingConfig, target: np.ndarray | float | None = None) -> np.ndarray:
     """Proportional speed control towards `target` (default: the speed limit), bounded comfortably."""
     goal = cfg.speed_limit if target is None else target
-    return np.clip(cfg.cruise_gain * (goal - view.speed), -cfg.idm_comfortable_deceleration, cfg.cruise_acceleration)
+    return np.clip(
+        cfg.cruise_gain * (goal - view.speed), -cfg.idm_comfortable_deceleration, cfg.cruise_acceleration
+    )
 
 
 def _follow(view: _View, cfg: DrivingConfig) -> np.ndarray:
@@ -265,7 +277,9 @@ def _follow(view: _View, cfg: DrivingConfig) -> np.ndarray:
     lead_v = veh[rows, j, 3]
     v = view.speed
     a_max, b = cfg.cruise_acceleration, cfg.idm_comfortable_deceleration
-    s_star = cfg.idm_min_gap + np.maximum(0.0, v * cfg.idm_time_headway + v * (v - lead_v) / (2 * np.sqrt(a_max * b)))
+    s_star = cfg.idm_min_gap + np.maximum(
+        0.0, v * cfg.idm_time_headway + v * (v - lead_v) / (2 * np.sqrt(a_max * b))
+    )
     v0 = max(cfg.speed_limit, _EPS)
     acc = a_max * (1.0 - (v / v0) ** 4 - (s_star / s) ** 2)
     acc = np.maximum(acc, -cfg.ego.max_deceleration)
@@ -287,9 +301,7 @@ def _travel_time(dist: np.ndarray, v: np.ndarray, accel: float, v_max: float) ->
     return np.where(d <= d1, t_acc, t_cru)
 
 
-def _corridor_interval(
-    py: np.ndarray, vy: np.ndarray, half_width: float
-) -> tuple[np.ndarray, np.ndarray]:
+def _corridor_interval(py: np.ndarray, vy: np.ndarray, half_width: float) -> tuple[np.ndarray, np.ndarray]:
     """When a constant-velocity pedestrian is inside |y| ≤ half_width: (t_in, t_out); t_in = inf if never."""
     inside = np.abs(py) <= half_width
     moving = np.abs(vy) > 1e-3
@@ -302,9 +314,9 @@ def _corridor_interval(
     return np.where(never, np.inf, t_in), np.where(never, -np.inf, t_out)
 
 
-def _path_interval(paths: np.ndarray, present: np.ndarray, half_width: float, min_x: float) -> tuple[
-    np.ndarray, np.ndarray, np.ndarray
-]:
+def _path_interval(
+    paths: np.ndarray, present: np.ndarray, half_width: float, min_x: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Corridor entry/exit times and entry x from predicted paths (B, K, T, 2) sampled every 0.4 s."""
     t = PREDICTION_STEP * np.arange(1, paths.shape[2] + 1)
     inside = (np.abs(paths[..., 1]) <= half_width) & (paths[..., 0] > min_x) & present[..., None]
@@ -330,7 +342,9 @@ def _stop_acceleration(
     s = np.asarray(distance, dtype=np.float64)
     v_allow = np.sqrt(2.0 * decel * np.maximum(s, 0.0))
     with np.errstate(divide="ignore", invalid="ignore"):
-        a_req = np.where(s > 0.05, v * v / (2.0 * np.maximum(s, 0.05)), np.where(v > 0.05, np.inf, 0.0))
+        # Past the target (s < 0) it is too late for a planned stop: brake fully. Within the last 5 cm the
+        # distance is floored, so a creeping car is not asked for an absurd deceleration.
+        a_req = np.where(s >= 0.0, v * v / (2.0 * np.maximum(s, 0.05)), np.where(v > 0.05, np.inf, 0.0))
     track = gain * (v_allow - v)
     acc = np.where(a_req > decel, -a_req, track)
     acc = np.where(np.isfinite(s), acc, np.inf)
@@ -437,7 +451,9 @@ class YieldingPolicy:
         at_crossing = (view.px >= near_rel - cfg.kerb_margin) & (view.px <= far_rel + cfg.kerb_margin)
         # Stop target for crossing-related yields: the stop line, or the crossing's edge once past the line.
         line_target = np.where(
-            view.to_stop > 0.0, view.to_stop - cfg.stop_buffer, view.to_stop + cfg.stop_line_offset - cfg.stop_buffer
+            view.to_stop > 0.0,
+            view.to_stop - cfg.stop_buffer,
+            view.to_stop + cfg.stop_line_offset - cfg.stop_buffer,
         )
         line_target = np.where(line_target > -0.3, np.maximum(line_target, 0.0), np.inf)  # (B,)
 
@@ -447,7 +463,9 @@ class YieldingPolicy:
         centre = 0.5 * (cfg.half_right + cfg.half_left)
         toward = (centre - view.py) * view.vy > 0.0
         on_xing = view.on_crossing & (in_half | toward)
-        waiting = view.waiting & ~view.on_road
+        kerb_gap = np.minimum(np.abs(view.py - cfg.road_right), np.abs(view.py - cfg.road_left))
+        slow = np.hypot(view.vx, view.vy) < cfg.waiting_speed
+        waiting = (view.waiting | (view.present & slow & (kerb_gap <= cfg.kerb_distance))) & ~view.on_road
         if use_pred and view.intention is not None:
             likely = view.intention >= cfg.intention_threshold
             waiting = (waiting | (likely & view.present & ~view.on_road)) & likely
@@ -485,7 +503,9 @@ class YieldingPolicy:
         )
         ped_target = s_arr - cfg.pedestrian_gap
         # Conflicts at the crossing: stop at the line when it is nearer than the pedestrian.
-        ped_target = np.where(at_crossing & crossing_ahead, np.minimum(ped_target, line_target[:, None]), ped_target)
+        ped_target = np.where(
+            at_crossing & crossing_ahead, np.minimum(ped_target, line_target[:, None]), ped_target
+        )
         ped_target = np.where(conflict, np.maximum(ped_target, 0.0), np.inf)
         return legal_target, ped_target.min(axis=1, initial=np.inf)
 
@@ -517,7 +537,9 @@ class YieldingPolicy:
         with np.errstate(invalid="ignore"):
             a = np.where(
                 np.isfinite(s) & (over > -0.5),
-                np.maximum(-cfg.ego.max_deceleration, -cfg.stop_gain * over - cfg.comfortable_deceleration * (s > 0)),
+                np.maximum(
+                    -cfg.ego.max_deceleration, -cfg.stop_gain * over - cfg.comfortable_deceleration * (s > 0)
+                ),
                 np.inf,
             )
         return a
@@ -574,7 +596,9 @@ class AlwaysCautious(YieldingPolicy):
             np.inf,
         )
         # Below the profile: do not accelerate above the crawl-speed envelope.
-        a_cap = np.clip(cfg.cruise_gain * (target - view.speed), -cfg.comfortable_deceleration, cfg.cruise_acceleration)
+        a_cap = np.clip(
+            cfg.cruise_gain * (target - view.speed), -cfg.comfortable_deceleration, cfg.cruise_acceleration
+        )
         return np.minimum(a, np.minimum(a_crawl, a_cap))
 
 
@@ -693,11 +717,18 @@ def scenario_settings(scenario: ScenarioConfig) -> dict[str, Any]:
         "half_right": 0.0 - ego_y,
         "half_left": road.num_forward_lanes * w - ego_y,
         "stop_line_offset": scenario.crossing.stop_line_offset,
+        "road_right": 0.0 - ego_y,
+        "road_left": road.road_width - ego_y,
     }
 
 
-def make_policy(name: str, scenario: ScenarioConfig | None = None, **overrides: Any) -> Policy:
-    """Build a registered policy; `scenario` fills the road-dependent settings, `overrides` any config field.
+def make_policy(
+    name: str, scenario: ScenarioConfig | None = None, dt: float | None = None, **overrides: Any
+) -> Policy:
+    """Build a registered policy by name.
+
+    `scenario` fills the road-dependent settings, `dt` the step time of policies with timers (ignored by
+    the others), `overrides` any config field.
 
     Raises:
         ValueError: unknown policy name or config field (the message lists the allowed ones).
@@ -712,6 +743,8 @@ def make_policy(name: str, scenario: ScenarioConfig | None = None, **overrides: 
     cfg = cfg_cls()
     if scenario is not None:
         cfg = replace(cfg, **scenario_settings(scenario))
+    if dt is not None and "dt" in allowed:
+        cfg = replace(cfg, dt=float(dt))
     if overrides:
         cfg = replace(cfg, **overrides)
     return cls(cfg)

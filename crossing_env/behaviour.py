@@ -57,7 +57,7 @@ COS_ZERO_ATOL = 1e-12
 
 @dataclass(frozen=True)
 class QuantumGapConfig:
-    """Parameters of `QuantumGapAcceptance` (our design; defaults keep accepted gaps near the critical gap)."""
+    """Parameters of `QuantumGapAcceptance` (our design; defaults keep accepted gaps near critical gaps)."""
 
     belief_scale: float = 0.4
     """Logistic scale (s) of the belief that the gap is safe around the critical gap; 0 gives a step."""
@@ -80,7 +80,9 @@ class QuantumGapConfig:
         if not (np.isfinite(self.gap_floor) and self.gap_floor >= 0.0):
             raise ValueError(f"QuantumGapConfig.gap_floor must be >= 0 seconds, got {self.gap_floor}")
         if not self.decision_interval > 0.0:
-            raise ValueError(f"QuantumGapConfig.decision_interval must be > 0 s, got {self.decision_interval}")
+            raise ValueError(
+                f"QuantumGapConfig.decision_interval must be > 0 s, got {self.decision_interval}"
+            )
 
 
 def safe_belief(gap: FloatArray, critical_gap: FloatArray, scale: float) -> FloatArray:
@@ -142,7 +144,9 @@ class QuantumGapAcceptance:
         p1, p2, q1, q2 = self._joint(gap, critical_gap)
         cos = np.cos(np.asarray(phase, dtype=np.float64))
         cos = np.where(np.abs(cos) < COS_ZERO_ATOL, 0.0, cos)
-        return np.where(self._above_floor(gap, critical_gap), interference_probability(p1, p2, q1, q2, cos), 0.0)
+        return np.where(
+            self._above_floor(gap, critical_gap), interference_probability(p1, p2, q1, q2, cos), 0.0
+        )
 
     def probability(self, context: DecisionContext) -> FloatArray:
         """Per-step probability of starting to cross, 0 for pedestrians facing red who are not violators."""
@@ -170,7 +174,9 @@ def irrational_neighbour_fraction(
         (n,) fractions in [0, 1]; 0 for inactive slots.
     """
     d = positions[:, None, :] - positions[None, :, :]
-    near = (d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] <= radius * radius) & active[None, :] & active[:, None]
+    near = (
+        (d[..., 0] * d[..., 0] + d[..., 1] * d[..., 1] <= radius * radius) & active[None, :] & active[:, None]
+    )
     np.fill_diagonal(near, False)
     count = near.sum(axis=1)
     bad = (near & irrational[None, :]).sum(axis=1)

@@ -30,9 +30,11 @@ KERB_STANDOFF = 0.45
 """Distance in metres from the kerb line at which a waiting pedestrian stands."""
 ARRIVAL_TOLERANCE = 0.35
 """Distance in metres at which a waypoint counts as reached."""
-KERB_ARRIVAL = (1.2, 0.6)
+KERB_ARRIVAL = (2.0, 0.6)
 """(along x, across y) metres within which a pedestrian heading for a kerb point counts as arrived at it."""
-GROUP_MAX_WAIT = 8.0
+GROUP_JOIN_DISTANCE = 1.5
+"""Metres from a waiting companion at which a group member walking up counts as arrived at the kerb."""
+GROUP_MAX_WAIT = 15.0
 """Seconds a group member at the kerb waits for companions still walking up before deciding alone."""
 
 
@@ -286,7 +288,19 @@ class PedestrianPopulation:
         near_kerb = (np.abs(y - self.waypoint[:, 1]) < KERB_ARRIVAL[1]) & (
             np.abs(self.position[:, 0] - self.waypoint[:, 0]) < KERB_ARRIVAL[0]
         )
-        arrived |= (st == APPROACHING) & self.intends & near_kerb
+        on_road = (y > self.geometry.kerb_south) & (y < self.geometry.kerb_north)
+        arrived |= (st == APPROACHING) & self.intends & near_kerb & ~on_road
+        # A group member walking up joins a companion already waiting at the kerb (its own kerb point may
+        # be behind that companion).
+        joining = np.flatnonzero((st == APPROACHING) & self.intends & (self.group >= 0) & ~on_road)
+        if joining.size:
+            mates = np.flatnonzero((st == WAITING) & (self.group >= 0))
+            if mates.size:
+                d = self.position[joining, None, :] - self.position[None, mates, :]
+                close = (d[..., 0] ** 2 + d[..., 1] ** 2 < GROUP_JOIN_DISTANCE**2) & (
+                    self.group[joining, None] == self.group[None, mates]
+                )
+                arrived[joining] |= close.any(axis=1)
         past_far_kerb = np.where(self.side > 0, y > self.geometry.kerb_north, y < self.geometry.kerb_south)
         arrived |= (st == CROSSING) & past_far_kerb
         # Each transition applies to the state held at the start of the step (one transition per step),
@@ -320,7 +334,8 @@ class PedestrianPopulation:
             groups = self.group[waiting]
             if np.any(groups >= 0) and go.any():
                 walking_up = self.group[(self.state == APPROACHING) & self.intends & (self.group >= 0)]
-                held = (groups >= 0) & np.isin(groups, walking_up) & (self.wait_time[waiting] < GROUP_MAX_WAIT)
+                patient = self.wait_time[waiting] < GROUP_MAX_WAIT
+                held = (groups >= 0) & np.isin(groups, walking_up) & patient
                 go &= ~held
                 moving_groups = groups[go & (groups >= 0)]
                 go |= (groups >= 0) & np.isin(groups, moving_groups) & ~held
@@ -347,7 +362,8 @@ class PedestrianPopulation:
                 # Head back to the kerb it came from (its side is unchanged), wait there and re-decide.
                 self.state[i] = APPROACHING
                 self.turning_back[i] = True
-                self.waypoint[i] = (self.position[i, 0], self._kerb_y[0] if self.side[i] > 0 else self._kerb_y[1])
+                start_kerb = self._kerb_y[0] if self.side[i] > 0 else self._kerb_y[1]
+                self.waypoint[i] = (self.position[i, 0], start_kerb)
                 self.desired_speed[i] = self.base_speed[i] * 1.2
                 self._log(i, "turn_back")
             done = crossing[arrived[crossing] & (st[crossing] == CROSSING)]
@@ -378,8 +394,11 @@ class PedestrianPopulation:
             self._log(i, "run")
 
     def irrational_now(self) -> np.ndarray:
-        """(n,) visibly acting irrationally this step: running, on red or away from the zebra on the road,
-        hesitating mid-crossing, turning back, or on the phone on the road."""
+        """(n,) visibly acting irrationally this step (what others can see and react to).
+
+        Running, crossing on red or away from the zebra, hesitating mid-crossing, turning back, or being on
+        the road with a phone.
+        """
         crossing = self.state == CROSSING
         on_road = self.on_road()
         return self.active & (
@@ -390,7 +409,7 @@ class PedestrianPopulation:
         )
 
     def _update_force_intensity(self) -> None:
-        """Seed Case 2: the QLB-updated ped–ped intensity from the irrational fraction of neighbours in view."""
+        """Seed Case 2: QLB-updated ped–ped intensity from the irrational fraction of neighbours in view."""
         from crossing_env.behaviour import irrational_neighbour_fraction, updated_ped_intensity
 
         fraction = irrational_neighbour_fraction(self.position, self.active, self.irrational_now())

@@ -1,13 +1,23 @@
 """`crossing-replay`: write crossing episodes and real pedestrian scenes to rerun recordings (`.rrd`).
 
-Three subcommands:
+Subcommands:
 
-* ``record --scenario NAME --policy NAME --seed N --out episode.rrd [--steps N] [--predictor M] [--view]``
-  runs one episode of ``crossing_env/Crossing-v0`` and logs it;
+* ``record --scenario NAME --policy NAME --seed N --out episode.rrd [--steps N] [--predictor M]
+  [--intention qlb|classical] [--save-log LOG.json] [--view]`` runs one episode of
+  ``crossing_env/Crossing-v0`` and logs it. Policies come from ``agents.make_policy`` when it knows the
+  name, else the built-ins ``constant`` and ``random``; a policy that reads predictions gets the best
+  available predictor wrappers unless ``--predictor`` / ``--intention`` say otherwise;
 * ``episode LOG.json --out episode.rrd`` re-runs an episode saved with `save_episode_log` (the format the
   evaluation script writes for its worst episodes) and logs it the same way;
 * ``scene --dataset eth|hotel|univ|zara1|zara2|sdd [--file F] --out scene.rrd [--model s-cgru]`` replays a
-  real ETH/UCY or SDD recording with trajectory predictions drawn against the ground truth.
+  real ETH/UCY or SDD recording with trajectory predictions drawn against the ground truth (constant
+  velocity, announced in the recording, when the learned model's weights are missing);
+* ``screenshot REC.rrd --time T --out shot.png`` saves a PNG of the viewer at ``sim_time = T`` without a
+  display (headless viewer; needs a Vulkan driver such as Mesa's lavapipe).
+
+``--view`` starts the native viewer shipped in the rerun-sdk wheel on the written file. Bad input exits
+with code 2 and a message naming the file, field or option; recordings are written to a temporary file
+and renamed, so a failed run leaves no partial ``.rrd``.
 
 Entities of an episode recording (world coordinates in metres; the 2D view draws +y downwards, like
 highway-env's renderer):
@@ -30,7 +40,8 @@ Episode log (JSON, `EPISODE_LOG_FORMAT` version 1) — enough to re-run a seeded
       "scenario": "busy_zebra",              # built-in name or path, or {"toml": "<scenario file text>"}
       "seed": 3,                              # the reset seed
       "policy": "random",                     # informative: the actions below are what is replayed
-      "predictor": null,                      # observation wrapper model used when recording, if any
+      "predictor": null,                      # trajectory predictor wrapper used when recording, if any
+      "intention": null,                      # crossing-intention wrapper used ("qlb", "classical"), if any
       "env_config": null,                     # null = default EnvConfig, else its fields as nested dicts
       "actions": [[0.25], [-1.0], ...],       # one action per step, as given to env.step
       "final_ground_truth_sha256": "…",       # optional: digest of the last GroundTruth, checked on replay
@@ -112,6 +123,8 @@ class EpisodeLog:
     """Name of the policy that chose the actions (informative only)."""
     predictor: str | None = None
     """Trajectory predictor wrapped around the env when recording (changes only the observation)."""
+    intention: str | None = None
+    """Crossing-intention wrapper used when recording (``qlb`` or ``classical``; observation only)."""
     env_config: EnvConfig | None = None
     """Env settings; None means the default `EnvConfig`."""
     final_ground_truth_sha256: str | None = None
@@ -172,6 +185,15 @@ def _dataclass_from_data(cls: type, data: Any, where: str) -> Any:
 
 
 def _scenario_to_data(scenario: str | os.PathLike[str] | ScenarioConfig) -> str | dict[str, str]:
+    """Built-in names stay names; configs and scenario files are stored inline (self-contained logs)."""
+    if (
+        not isinstance(scenario, ScenarioConfig)
+        and Path(scenario).suffix == ".toml"
+        and Path(scenario).is_file()
+    ):
+        from scenarios import load_scenario
+
+        scenario = load_scenario(scenario)
     if isinstance(scenario, ScenarioConfig):
         from scenarios import dump_scenario
 
@@ -210,17 +232,20 @@ def save_episode_log(
     predictor: str | None = None,
     env_config: EnvConfig | None = None,
     final_ground_truth: GroundTruth | None = None,
+    intention: str | None = None,
     metadata: Mapping[str, Any] | None = None,
 ) -> Path:
     """Write an episode log (JSON, atomically) that `crossing-replay episode` re-runs.
 
     Args:
         path: Output file (``.json``).
-        scenario: Built-in name, scenario file path, or config (stored inline as TOML text).
+        scenario: Built-in name (stored as the name), or scenario file path or config (stored inline as TOML
+            text, so the log does not depend on the file).
         seed: The seed given to ``env.reset``.
         actions: The actions given to ``env.step``, in order (each a number or a length-1 array).
         policy: Name of the policy, for the reader.
         predictor: Trajectory-predictor observation wrapper used, if any (e.g. ``"cvm"``).
+        intention: Crossing-intention wrapper used, if any (``"qlb"`` or ``"classical"``).
         env_config: Non-default env settings, if any.
         final_ground_truth: Last ground truth of the episode; its digest lets the replay check itself.
         metadata: Extra JSON-serialisable data (e.g. metrics), stored under ``"metadata"``.
@@ -240,6 +265,7 @@ def save_episode_log(
         "seed": int(seed),
         "policy": str(policy),
         "predictor": predictor,
+        "intention": None if intention in (None, "none") else intention,
         "env_config": None
         if env_config is None or env_config == EnvConfig()
         else _dataclass_to_data(env_config),
@@ -310,15 +336,19 @@ def load_episode_log(path: str | os.PathLike[str]) -> EpisodeLog:
     digest = data.get("final_ground_truth_sha256")
     if digest is not None and not isinstance(digest, str):
         raise ReplayError(f"{p}: field 'final_ground_truth_sha256' = {digest!r}; expected a hex string")
-    predictor = data.get("predictor")
-    if predictor is not None and not isinstance(predictor, str):
-        raise ReplayError(f"{p}: field 'predictor' = {predictor!r}; expected a string or null")
+    predictor, intention = data.get("predictor"), data.get("intention")
+    for key, value in (("predictor", predictor), ("intention", intention)):
+        if value is not None and not isinstance(value, str):
+            raise ReplayError(f"{p}: field {key!r} = {value!r}; expected a string or null")
+    predictor = None if predictor == "none" else predictor
+    intention = None if intention == "none" else intention
     return EpisodeLog(
         scenario=scenario,
         seed=seed,
         actions=actions,
         policy=str(data.get("policy", "unknown")),
         predictor=predictor,
+        intention=intention,
         env_config=env_config,
         final_ground_truth_sha256=digest,
         metadata=dict(data.get("metadata") or {}),
@@ -369,9 +399,13 @@ def make_policy(name: str, seed: int, env: Any = None) -> Policy:
     except ImportError:
         agents = None
     if maker is not None:
-        offer = {"env": env, "seed": seed, "rng": np.random.default_rng(seed)}
+        offer: dict[str, Any] = {"env": env, "seed": seed, "rng": np.random.default_rng(seed)}
+        if env is not None:
+            offer["scenario"] = env.unwrapped.scenario
+            offer["dt"] = env.unwrapped.config.dt
         params = inspect.signature(maker).parameters
-        kwargs = {k: v for k, v in offer.items() if k in params}
+        named = {k for k, p in params.items() if p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL)}
+        kwargs = {k: v for k, v in offer.items() if k in named}
         try:
             return _adapt_policy(maker(name, **kwargs), seed)
         except (KeyError, LookupError, ValueError) as exc:
@@ -385,12 +419,21 @@ def make_policy(name: str, seed: int, env: Any = None) -> Policy:
     )
 
 
+INTENTION_WRAPPERS: dict[str, str] = {"qlb": "QLBIntention", "classical": "ClassicalIntention"}
+"""``--intention`` names → wrappers in ``predictors.intention`` that add ``crossing_intention``."""
+
+
 def make_env(
     scenario: str | os.PathLike[str] | ScenarioConfig,
     predictor: str | None = None,
     config: EnvConfig | None = None,
+    intention: str | None = None,
 ) -> Any:
-    """``gym.make("crossing_env/Crossing-v0", ...)``, wrapped with a trajectory predictor if asked."""
+    """``gym.make("crossing_env/Crossing-v0", ...)`` with the requested predictor wrappers.
+
+    The intention wrapper goes on first and the trajectory predictor second, as in ``crossing-eval``, so
+    a policy sees the same observations as in the evaluation.
+    """
     import gymnasium as gym
 
     import crossing_env  # registers the env
@@ -399,15 +442,73 @@ def make_env(
     if config is not None:
         kwargs["config"] = config
     env = gym.make(crossing_env.ENV_ID, **kwargs)
-    if predictor:
-        from predictors.trajectory_wrapper import TrajectoryPrediction
-
-        try:
-            env = TrajectoryPrediction(env, model=predictor)
-        except (FileNotFoundError, ValueError) as exc:
-            env.close()
-            raise ReplayError(f"--predictor {predictor!r}: {exc}") from exc
+    try:
+        if intention:
+            if intention not in INTENTION_WRAPPERS:
+                raise ReplayError(f"--intention {intention!r}: allowed {', '.join(INTENTION_WRAPPERS)}")
+            try:
+                module = importlib.import_module("predictors.intention")
+            except ImportError as exc:
+                raise ReplayError(
+                    f"--intention {intention!r}: predictors.intention unavailable ({exc})"
+                ) from exc
+            cls = getattr(module, INTENTION_WRAPPERS[intention], None)
+            if cls is None:
+                raise ReplayError(
+                    f"--intention {intention!r}: predictors.intention has no {INTENTION_WRAPPERS[intention]}"
+                )
+            env = cls(env)
+        if predictor:
+            try:
+                from predictors.trajectory_wrapper import TrajectoryPrediction
+            except ImportError as exc:
+                raise ReplayError(f"--predictor {predictor!r}: predictors unavailable ({exc})") from exc
+            try:
+                env = TrajectoryPrediction(env, model=predictor)
+            except (OSError, ValueError, RuntimeError) as exc:
+                raise ReplayError(f"--predictor {predictor!r}: {exc}") from exc
+    except BaseException:
+        env.close()
+        raise
     return env
+
+
+def _policy_uses_predictors(name: str) -> bool:
+    """Whether an ``agents`` policy reads ``predicted_paths`` / ``crossing_intention`` (False if unknown)."""
+    try:
+        from agents.policies import policy_uses_predictors
+    except ImportError:
+        return False
+    try:
+        return bool(policy_uses_predictors(name))
+    except (KeyError, ValueError):
+        return False
+
+
+def _auto_env(
+    scenario: str | os.PathLike[str] | ScenarioConfig, config: EnvConfig | None
+) -> tuple[Any, str | None, str | None]:
+    """Env for a predictor-using policy when no wrapper was asked for: the best available combination."""
+    notes = []
+    for predictor, intention in (
+        ("s-cgru", "qlb"),
+        ("cvm", "qlb"),
+        ("s-cgru", None),
+        ("cvm", None),
+        (None, None),
+    ):
+        try:
+            env = make_env(scenario, predictor, config, intention)
+        except ReplayError as exc:
+            notes.append(str(exc))
+            continue
+        print(
+            f"crossing-replay: the policy uses predictors: predictor={predictor}, intention={intention}"
+            + (f" (skipped: {'; '.join(notes)})" if notes else ""),
+            file=sys.stderr,
+        )
+        return env, predictor, intention
+    raise AssertionError("unreachable: the bare env always builds")
 
 
 @dataclass
@@ -644,7 +745,10 @@ class EpisodeRecorder:
                 rr.LineStrips2D(stops, radii=0.15, colors=(245, 245, 245), draw_order=3.0),
                 static=True,
             )
-        log("events/info", rr.TextLog(f"scenario {sc.name}: {sc.description}", level="INFO"), static=True)
+        # Text logs are shown only on a timeline (a static entry is hidden): log this one at frame 0.
+        self.rec.set_time("step", sequence=0)
+        self.rec.set_time("sim_time", duration=0.0)
+        log("events/info", rr.TextLog(f"scenario {sc.name}: {sc.description}", level="INFO"))
 
     def _safety(self, gt: GroundTruth) -> tuple[float, float]:
         """(minimum ego–pedestrian separation, minimum ego–pedestrian TTC); inf without pedestrians."""
@@ -795,6 +899,10 @@ class RecordSummary:
     """Last ground truth."""
     ground_truths: tuple[GroundTruth, ...] = ()
     """Every frame's ground truth, when asked for (`keep_ground_truth=True`)."""
+    predictor: str | None = None
+    """Trajectory predictor wrapper really used."""
+    intention: str | None = None
+    """Intention wrapper really used."""
 
 
 def record_episode(
@@ -807,13 +915,21 @@ def record_episode(
     predictor: str | None = None,
     env_config: EnvConfig | None = None,
     keep_ground_truth: bool = False,
+    intention: str | None = None,
 ) -> RecordSummary:
-    """Run one episode (with `policy`, or replaying `actions`) and write it to `out` (atomically)."""
+    """Run one episode (with `policy`, or replaying `actions`) and write it to `out` (atomically).
+
+    A policy from ``agents`` that reads predictions gets the best available wrappers when neither
+    `predictor` nor `intention` is given (S-CGRU, else constant velocity; QLB intention if present).
+    """
     if max_steps is not None and max_steps < 1:
         raise ReplayError(f"--steps {max_steps}: must be at least 1")
     if seed < 0:
         raise ReplayError(f"--seed {seed}: must be non-negative")
-    env = make_env(scenario, predictor, env_config)
+    if actions is None and predictor is None and intention is None and _policy_uses_predictors(policy):
+        env, predictor, intention = _auto_env(scenario, env_config)
+    else:
+        env = make_env(scenario, predictor, env_config, intention)
     try:
         base = env.unwrapped
         pol = None if actions is not None else make_policy(policy, seed, env)
@@ -841,7 +957,7 @@ def record_episode(
     finally:
         env.close()
     acts = np.stack(taken) if taken else np.zeros((0, 1), np.float32)
-    return RecordSummary(Path(out), len(taken), collisions, acts, gt, tuple(gts))
+    return RecordSummary(Path(out), len(taken), collisions, acts, gt, tuple(gts), predictor, intention)
 
 
 def replay_episode_log(
@@ -849,28 +965,35 @@ def replay_episode_log(
 ) -> tuple[RecordSummary, bool | None]:
     """Re-run a saved episode into `out`.
 
+    The logged actions are replayed, so the predictor wrappers only add what is drawn (predicted paths,
+    intentions); if they cannot be built here, the episode is replayed without them (with a message).
+
     Returns:
-        The summary, and whether the final ground truth matched the log's digest (None: no digest).
+        The summary, and whether the replay matched the log (None: the log has no digest). A mismatch
+        (other final ground truth, or an episode that ended before the actions ran out) means that the
+        code or the scenario changed since the log was saved.
     """
     log = load_episode_log(log_path)
-    summary = record_episode(
-        out,
-        log.scenario,
-        log.seed,
-        policy=log.policy,
-        actions=log.actions,
-        predictor=log.predictor,
-        env_config=log.env_config,
-        keep_ground_truth=keep_ground_truth,
-    )
-    if summary.steps != len(log.actions):
-        raise ReplayError(
-            f"{log_path}: the episode ended after {summary.steps} steps but the log holds "
-            f"{len(log.actions)} actions (field 'actions'): recorded with other code or data"
+    kwargs: dict[str, Any] = {
+        "policy": log.policy,
+        "actions": log.actions,
+        "env_config": log.env_config,
+        "keep_ground_truth": keep_ground_truth,
+    }
+    try:
+        summary = record_episode(
+            out, log.scenario, log.seed, predictor=log.predictor, intention=log.intention, **kwargs
         )
+    except ReplayError as exc:
+        if log.predictor is None and log.intention is None:
+            raise
+        print(f"crossing-replay: {exc}; replaying without predictor wrappers", file=sys.stderr)
+        summary = record_episode(out, log.scenario, log.seed, **kwargs)
     match = None
     if log.final_ground_truth_sha256 is not None:
         match = ground_truth_digest(summary.final_ground_truth) == log.final_ground_truth_sha256
+    if summary.steps != len(log.actions):
+        match = False
     return summary, match
 
 
@@ -912,10 +1035,13 @@ class ScenePredictions:
     """(N, 12, 2) predicted positions."""
 
 
-def _load_predictor(model: str, dataset: str) -> tuple[Callable[[Any, Any], Any], str]:
+def _load_predictor(
+    model: str, dataset: str, weights_dir: str | os.PathLike[str] | None = None
+) -> tuple[Callable[[Any, Any], Any], str]:
     """``(obs, seq_start_end) -> (N, 12, 2)`` and a label saying which predictor it really is.
 
-    Learned models use ``predictors/weights/<model>_<dataset>.pt`` (trained without that scene); when the
+    Learned models use ``<weights_dir>/<model>_<dataset>.pt`` (default ``predictors/weights``; the ETH/UCY
+    checkpoints are trained without that scene, as in ``predictors.evaluate``); when the
     weights or the predictors package are missing, the constant-velocity model is used and the label says so.
     """
     try:
@@ -934,7 +1060,7 @@ def _load_predictor(model: str, dataset: str) -> tuple[Callable[[Any, Any], Any]
             from predictors.evaluate import weights_for
             from predictors.train import WEIGHTS_DIR, load_model
 
-            path = weights_for(model, dataset, WEIGHTS_DIR)
+            path = weights_for(model, dataset, Path(weights_dir) if weights_dir is not None else WEIGHTS_DIR)
             if path is not None:
                 net = load_model(path)
                 net.eval()
@@ -1018,7 +1144,9 @@ def scene_blueprint(positions: np.ndarray, present: np.ndarray) -> Any:
             ),
             row_shares=[3, 1],
         ),
-        rrb.TimePanel(timeline="sim_time"),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(timeline="sim_time", state="collapsed"),
     )
 
 
@@ -1050,8 +1178,14 @@ def record_scene(
     model: str = "s-cgru",
     start_frame: int = 0,
     max_frames: int | None = None,
+    weights_dir: str | os.PathLike[str] | None = None,
 ) -> SceneSummary:
-    """Replay a real recording with predictions (magenta) against the ground-truth futures (green)."""
+    """Replay a real recording with predictions (magenta) against the ground-truth futures (green).
+
+    At every frame, each pedestrian with 8 observed positions (3.2 s) gets a 12-step (4.8 s) prediction.
+    Unlike the Social-GAN protocol, pedestrians without a complete future are predicted (and pooled over)
+    too, because a viewer wants every pedestrian; ADE/FDE are reported only for complete futures.
+    """
     import rerun as rr
 
     if start_frame < 0:
@@ -1078,7 +1212,7 @@ def record_scene(
     present = np.zeros((t_len, len(peds)), bool)
     positions[f_idx, p_idx] = rows[:, 2:4]
     present[f_idx, p_idx] = True
-    predictor, label = _load_predictor(model, dataset)
+    predictor, label = _load_predictor(model, dataset, weights_dir)
     sp = predict_scene(positions, present, predictor)
     # Ground-truth future: the contiguous prefix of the next 12 frames in which the pedestrian is present.
     fut_t = sp.frame[:, None] + np.arange(1, 13)[None, :]
@@ -1095,6 +1229,9 @@ def record_scene(
     rid = f"{dataset}-{path.stem}-{start_frame}-{stop}-{model}"
     with open_recording(out, rid, scene_blueprint(positions, present)) as rec:
         rec.send_recording_name(f"{dataset}/{path.name} · predictor {label}")
+        rec.set_time("step", sequence=0)  # text logs show only on a timeline, not as static data
+        rec.set_time("frame", sequence=int(frames_all[start_frame]))
+        rec.set_time("sim_time", duration=0.0)
         rec.log(
             "info",
             rr.TextLog(
@@ -1102,7 +1239,6 @@ def record_scene(
                 "magenta = predicted, green = ground truth, grey = observed",
                 level="INFO",
             ),
-            static=True,
         )
         order = np.searchsorted(sp.frame, np.arange(t_len + 1))
         for t in range(t_len):
@@ -1130,6 +1266,7 @@ def record_scene(
                     radii=0.06,
                     colors=PREDICTION_COLOUR,
                     labels=[str(int(peds[i])) for i in sp.ped[idx]],
+                    show_labels=False,
                 ),
             )
             gt_strips = [np.concatenate([cur[k], fut[i, : fut_len[i]]]) for k, i in enumerate(idx)]
@@ -1316,6 +1453,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", required=True, help="output .rrd")
     r.add_argument("--steps", type=_positive_int, default=None, help="stop after this many steps")
     r.add_argument("--predictor", default=None, help="trajectory predictor wrapper (cvm, s-cgru, path)")
+    r.add_argument("--intention", default=None, choices=sorted(INTENTION_WRAPPERS), help="intention wrapper")
     r.add_argument("--save-log", default=None, help="also write the episode log (JSON) here")
     r.add_argument("--view", action="store_true", help="open the recording in the rerun viewer")
     e = sub.add_parser("episode", help="replay a saved episode log")
@@ -1327,6 +1465,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--file", default=None, help="trajectory file (path or name in the dataset's test folder)")
     s.add_argument("--data", default=None, help="data root (default $CROSSING_DATA or <repo>/../shared/data)")
     s.add_argument("--model", default="s-cgru", help="s-cgru, s-lstm, ... (learned), cvm or kalman")
+    s.add_argument(
+        "--weights", default=None, help="folder of <model>_<dataset>.pt (default predictors/weights)"
+    )
     s.add_argument("--start-frame", type=_non_negative_int, default=0, help="first frame index of the slice")
     s.add_argument("--max-frames", type=_positive_int, default=None, help="number of frames to replay")
     s.add_argument("--out", required=True, help="output .rrd")
@@ -1353,6 +1494,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 policy=args.policy,
                 max_steps=args.steps,
                 predictor=args.predictor,
+                intention=args.intention,
             )
             if args.save_log:
                 save_episode_log(
@@ -1361,7 +1503,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                     seed=args.seed,
                     actions=summary.actions,
                     policy=args.policy,
-                    predictor=args.predictor,
+                    predictor=summary.predictor,
+                    intention=summary.intention,
                     final_ground_truth=summary.final_ground_truth,
                 )
             print(f"wrote {summary.out}: {summary.steps} steps, {summary.collisions} collision(s)")
@@ -1370,8 +1513,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"wrote {summary.out}: {summary.steps} steps, {summary.collisions} collision(s)")
             if match is False:
                 print(
-                    f"crossing-replay: warning: {args.log}: the final ground truth differs from the digest "
-                    "in field 'final_ground_truth_sha256' (code or scenario changed since it was saved)",
+                    f"crossing-replay: warning: {args.log}: the replay differs from the log (episode "
+                    "length vs field 'actions', or final ground truth vs field 'final_ground_truth_sha256'): "
+                    "the code or the scenario changed since it was saved",
                     file=sys.stderr,
                 )
                 status = 1
@@ -1381,7 +1525,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 0
         else:
             sc = record_scene(
-                args.out, args.dataset, args.data, args.file, args.model, args.start_frame, args.max_frames
+                args.out,
+                args.dataset,
+                args.data,
+                args.file,
+                args.model,
+                args.start_frame,
+                args.max_frames,
+                args.weights,
             )
             print(
                 f"wrote {sc.out}: {sc.file.name}, {sc.frames} frames, {sc.predictions} predictions, "

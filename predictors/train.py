@@ -55,11 +55,11 @@ class TrainConfig:
     """Data root with ``eth_ucy/`` and ``sdd/`` (default: ``$CROSSING_DATA`` or ``../shared/data``)."""
     out: str = ""
     """Checkpoint path (default ``predictors/weights/<model>_<scene>.pt``)."""
-    lr: float = 1e-3
+    lr: float = 5e-4
     """Adam learning rate."""
     batch_peds: int = 256
     """Pedestrian budget per batch (whole windows)."""
-    train_fraction: float = 0.5
+    train_fraction: float = 0.25
     """Fraction of training windows drawn (without replacement) each epoch, to fit a CPU budget."""
     max_minutes: float = 3.0
     """Wall-clock budget for the whole run (0 = none); training stops after the epoch that exceeds it."""
@@ -75,6 +75,8 @@ class TrainConfig:
     """Width of the displacement and social-tensor embeddings; the paper uses 64."""
     cv_residual: int = 1
     """1: learned models predict a correction to the last displacement (constant-velocity prior)."""
+    nll_beta: float = 1.0
+    """beta of the beta-NLL loss (0 = plain Gaussian NLL); see ``models.bivariate_nll``."""
     teacher_forcing: int = 0
     """1: feed the ground truth back during the future steps (Social-LSTM); 0: feed the predicted means."""
 
@@ -120,6 +122,7 @@ def save_checkpoint(path: Path, model: SocialRecurrent, meta: dict[str, object])
     os.close(fd)
     try:
         torch.save(payload, tmp)
+        os.chmod(tmp, 0o644)  # mkstemp creates 0600; shipped weights must be world-readable
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):
@@ -206,7 +209,7 @@ def train(cfg: TrainConfig) -> Path:
         total = 0.0
         bar = tqdm(batches, desc=f"{cfg.model} {cfg.scene} epoch {epoch + 1}/{cfg.epochs}", leave=False)
         for b in bar:
-            loss = model.loss(b.obs, b.fut, b.seq_start_end, bool(cfg.teacher_forcing))
+            loss = model.loss(b.obs, b.fut, b.seq_start_end, bool(cfg.teacher_forcing), cfg.nll_beta)
             opt.zero_grad()
             loss.backward()
             torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
@@ -234,6 +237,8 @@ def train(cfg: TrainConfig) -> Path:
                 "lr": cfg.lr,
                 "batch_peds": cfg.batch_peds,
                 "teacher_forcing": cfg.teacher_forcing,
+                "nll_beta": cfg.nll_beta,
+                "cv_residual": cfg.cv_residual,
             }
             save_checkpoint(out, model, meta)
         if cfg.max_minutes and time.time() - t0 > 60.0 * cfg.max_minutes:

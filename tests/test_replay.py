@@ -123,6 +123,41 @@ def test_predictions_logged_in_world_frame(tmp_path: Path) -> None:
         np.testing.assert_allclose(strip[0], by_id[int(label)], atol=1e-4)
 
 
+def test_intention_logged_per_pedestrian(tmp_path: Path) -> None:
+    import gymnasium as gym
+
+    class FakeIntention(gym.ObservationWrapper):
+        """Adds crossing_intention = 0.25 for every present slot."""
+
+        def __init__(self, env: gym.Env) -> None:
+            super().__init__(env)
+            k = env.observation_space["pedestrians"].shape[0]
+            box = gym.spaces.Box(0.0, 1.0, (k,), np.float32)
+            self.observation_space = gym.spaces.Dict(
+                {**env.observation_space.spaces, "crossing_intention": box}
+            )
+
+        def observation(self, obs: dict) -> dict:
+            return {**obs, "crossing_intention": (obs["pedestrians"][:, 0] * 0.25).astype(np.float32)}
+
+    env = FakeIntention(replay.make_env(SCENARIO))
+    out = tmp_path / "i.rrd"
+    with replay.open_recording(out, "intention-test") as rec:
+        recorder = replay.EpisodeRecorder(rec, env.unwrapped.scenario, 0.1)
+        frames = list(replay.run_episode(env, 1, replay.make_policy("constant", 1), max_steps=10))
+        for frame in frames:
+            recorder.log_frame(frame)
+    env.close()
+    seen: set[int] = set()
+    for frame in frames:
+        ids = frame.slot_ids[frame.slot_ids >= 0]
+        assert set(ids.tolist()) <= set(frame.ground_truth.pedestrian_ids.tolist())  # slots map to real ids
+        seen |= set(ids.tolist())
+    data = read_rrd(out)
+    assert seen and {e for e in data if e.startswith("/intention/")} == {f"/intention/ped_{i}" for i in seen}
+    assert all(r["Scalars:scalars"] == [0.25] for e in data if e.startswith("/intention/") for r in data[e])
+
+
 def test_episode_log_round_trip_is_bit_exact(tmp_path: Path) -> None:
     first = replay.record_episode(
         tmp_path / "a.rrd", SCENARIO, seed=3, policy="random", max_steps=40, keep_ground_truth=True
@@ -199,6 +234,19 @@ def test_cli_record_and_episode(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert replay.main(["episode", str(log), "--out", str(tmp_path / "d.rrd")]) == 0
     assert len(read_rrd(tmp_path / "d.rrd")["/world/pedestrians"]) == 9
     assert "8 steps" in capsys.readouterr().out
+
+
+def test_view_spawns_the_viewer(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    calls: list[list[str]] = []
+
+    class FakePopen:
+        def __init__(self, cmd: list[str], **kwargs: object) -> None:
+            calls.append(cmd)
+
+    monkeypatch.setattr(replay.subprocess, "Popen", FakePopen)
+    out = tmp_path / "v.rrd"
+    assert replay.main(["record", "--scenario", SCENARIO, "--steps", "3", "--out", str(out), "--view"]) == 0
+    assert len(calls) == 1 and calls[0][-1] == str(out) and Path(calls[0][0]).name.startswith("rerun")
 
 
 def test_builtin_policies() -> None:
@@ -302,26 +350,52 @@ needs_data = pytest.mark.skipif(
 )
 
 
+@pytest.fixture(scope="module")
+def tiny_weights(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An untrained S-CGRU checkpoint, so the learned-model path runs whether or not weights ship."""
+    torch = pytest.importorskip("torch")
+    models = pytest.importorskip("predictors.models")
+    train = pytest.importorskip("predictors.train")
+    torch.manual_seed(0)
+    folder = tmp_path_factory.mktemp("weights")
+    cfg = models.ModelConfig(kind="s-cgru", hidden_size=16, embed_size=8)
+    train.save_checkpoint(folder / "s-cgru_eth.pt", models.SocialRecurrent(cfg), {"note": "test"})
+    return folder
+
+
 @pytest.mark.data
 @needs_data
-@pytest.mark.parametrize("model", ["s-cgru", "cvm"])
-def test_scene_replay_small_slice(tmp_path: Path, model: str) -> None:
+@pytest.mark.parametrize("model", ["s-cgru", "cvm", "s-cgru-shipped"])
+def test_scene_replay_small_slice(tmp_path: Path, model: str, tiny_weights: Path) -> None:
     pytest.importorskip("predictors.data")
     out = tmp_path / "scene.rrd"
-    summary = replay.record_scene(out, "eth", DATA_ROOT, model=model, start_frame=0, max_frames=40)
+    weights = tiny_weights if model == "s-cgru" else None
+    summary = replay.record_scene(
+        out, "eth", DATA_ROOT, model=model.removesuffix("-shipped"), max_frames=40, weights_dir=weights
+    )
     assert summary.frames == 40 and summary.predictions > 0
-    assert np.isfinite(summary.ade) and 0 < summary.ade < summary.fde + 1e-9 < 20
+    assert np.isfinite(summary.ade) and 0 < summary.ade < summary.fde + 1e-9 < 50
     if model == "cvm":
         assert summary.predictor == "cvm"
-    else:  # the learned model when its weights ship, otherwise an announced fallback
+    elif model == "s-cgru":
+        assert summary.predictor == "s-cgru (s-cgru_eth.pt)"
+    else:  # shipped weights if present, otherwise an announced constant-velocity fallback
         assert summary.predictor.startswith("s-cgru") or "fallback" in summary.predictor
     data = read_rrd(out)
     assert len(data["/scene/pedestrians"]) == 40
     assert len(data["/scene/prediction"]) == 40
-    assert summary.predictor in data["/info"][0]["TextLog:text"]
-    n_strips = sum(len(r["LineStrips2D:strips"]) for r in data["/scene/prediction"])
-    assert n_strips == summary.predictions
-    assert all(len(s) == 13 for r in data["/scene/prediction"] for s in r["LineStrips2D:strips"])
+    assert summary.predictor in data["/info"][0]["TextLog:text"][0]
+    strips = [np.asarray(s) for r in data["/scene/prediction"] for s in r["LineStrips2D:strips"]]
+    assert len(strips) == summary.predictions
+    assert all(s.shape == (13, 2) for s in strips)  # current position + 12 predicted
+
+
+def test_constant_velocity_fallback_extrapolates() -> None:
+    predict, label = replay._load_predictor("no-such-model", "eth", "/nonexistent")
+    assert "constant velocity" in label
+    obs = np.stack([np.stack([np.arange(8.0), 2 * np.arange(8.0)], axis=1)]).astype(np.float32)
+    out = np.asarray(predict(obs, None))
+    np.testing.assert_allclose(out[0, -1], [7.0 + 12, 14.0 + 24], atol=1e-5)
 
 
 @pytest.mark.data

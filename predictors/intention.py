@@ -1,0 +1,343 @@
+"""Crossing-intention observation wrappers: QLB and classical (CBM) estimates from the observation only.
+
+Both wrappers add ``"crossing_intention"`` ``(K,)`` float32 in [0, 1] to the Dict observation: for each
+pedestrian slot, the estimated probability that the pedestrian is on the carriageway ahead of the ego's rear
+at some moment within ``horizon`` seconds (already crossing, or starting to). Absent slots get 0.
+
+Inputs are the observation (pedestrian positions, velocities and on-crossing / waiting / on-road flags;
+vehicle positions, velocities and lengths; ego speed and signal state) plus the static map a car carries
+(kerb lines relative to its lane, crossing position and type), read once from the env's scenario. Hidden
+quantities (intentions, critical gaps, phases, decision states) are never read.
+
+The model, per slot, vectorised over slots:
+
+1. On the road ahead of the ego's rear: the event is happening now (probability ``on_road_ahead``).
+2. Otherwise a pedestrian reaches the kerb after ``t_kerb`` (0 when it looks like waiting; distance over the
+   speed towards the road when walking towards it; along the sidewalk to the crossing otherwise) with
+   intention prior ``p_intent`` (high for waiting / walking towards the road, ``intent_prior`` otherwise).
+3. At the kerb it looks at the gap: the time until the first approaching car (background vehicles and the
+   ego) reaches its line, evaluated at ``t_kerb``. The observer does not know the pedestrian's critical gap,
+   so its belief that the gap is safe averages ``sigmoid((gap - c) / belief_scale)`` over quantiles of the
+   calibrated population critical-gap distribution (lognormal, mean 5.5 s, SD 1.2 s, floor 3 s).
+4. The per-look crossing probability is a disjunction over the hidden cause "gap safe" (qlb.md §4, mapping
+   (a)): classical (CBM) ``beta P(C | safe) + (1 - beta) P(C | unsafe)``, or quantum-like (QLB) with the phase
+   from the Moreira & Wichert similarity heuristic (`predictors.qlb.disjunction_probabilities` with
+   ``theta=None``): the observer cannot see each pedestrian's own phase, so the network sets it.
+5. Looks every ``decision_interval`` seconds give a hazard; the probability of starting within the time left
+   before the horizon (or before the ego has passed the pedestrian) is ``1 - exp(-rate * window)``.
+
+A pedestrian facing a red signal (signalised crossing, cars green, near the crossing) is scaled by
+``red_light_prior``. These are our modelling choices, documented here; the benchmark
+(`benchmarks/intention.py`) measures how well each variant ranks and calibrates against ground truth.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from predictors.qlb import disjunction_probabilities
+
+__all__ = [
+    "ClassicalIntention",
+    "CrossingIntention",
+    "IntentionConfig",
+    "QLBIntention",
+    "crossing_intention",
+    "look_probability",
+    "look_rate_table",
+]
+
+Variant = Literal["qlb", "cbm"]
+
+
+@dataclass(frozen=True)
+class IntentionConfig:
+    """Parameters of the intention estimate (our design; shared by the QLB and CBM variants)."""
+
+    critical_gap_mean: float = 5.5
+    """Population mean critical gap in seconds (calibration notes)."""
+    critical_gap_std: float = 1.2
+    """Population SD of the critical gap in seconds."""
+    critical_gap_floor: float = 3.0
+    """Floor of the critical gap in seconds."""
+    quantiles: int = 7
+    """Number of critical-gap quantiles averaged into the observer's belief."""
+    belief_scale: float = 0.4
+    """Logistic scale (s) of the belief that a gap is safe around a critical gap."""
+    p_cross_safe: float = 0.95
+    """P(step off at one look | gap safe)."""
+    p_cross_unsafe: float = 0.01
+    """P(step off at one look | gap unsafe)."""
+    decision_interval: float = 0.5
+    """Seconds between two looks at the traffic (turns per-look probabilities into a rate)."""
+    intent_waiting: float = 0.75
+    """P(intends to cross) for a pedestrian standing at the kerb."""
+    intent_towards_road: float = 0.7
+    """P(intends to cross) for a pedestrian walking towards the road."""
+    intent_prior: float = 0.5
+    """P(intends to cross) for a pedestrian walking along the sidewalk towards (or at) the crossing."""
+    intent_leaving_crossing: float = 0.1
+    """P(intends to cross) for a pedestrian walking along the sidewalk away from the crossing."""
+    intent_away: float = 0.02
+    """P(intends to cross) for a pedestrian walking away from the road (e.g. having just crossed)."""
+    towards_speed: float = 0.25
+    """Speed (m/s) towards the road above which a pedestrian counts as walking towards it."""
+    walking_speed: float = 1.35
+    """Assumed walking speed (m/s) for the last steps to the road and along the sidewalk."""
+    kerb_standoff: float = 0.45
+    """Distance (m) from the kerb at which pedestrians stand while waiting."""
+    start_delay: float = 0.2
+    """Seconds lost accelerating from a standstill when stepping off (social-force relaxation time)."""
+    on_road_ahead: float = 0.98
+    """Probability given to a pedestrian already on the road ahead of the ego's rear."""
+    red_light_prior: float = 0.1
+    """Factor on the crossing rate of a pedestrian facing red at a signalised crossing (5-15 % violate)."""
+
+
+def _lognormal_quantiles(mean: float, std: float, floor: float, n: int) -> np.ndarray:
+    """Midpoint quantiles of the floored lognormal critical-gap distribution."""
+    from statistics import NormalDist
+
+    sigma2 = math.log(1.0 + (std / mean) ** 2)
+    mu, sigma = math.log(mean) - sigma2 / 2, math.sqrt(sigma2)
+    z = np.array([NormalDist().inv_cdf((k + 0.5) / n) for k in range(n)])
+    return np.maximum(floor, np.exp(mu + sigma * z))
+
+
+@dataclass(frozen=True)
+class _Map:
+    """Static map facts relative to the ego's lane (what an HD map gives a car)."""
+
+    kerb_low: float
+    """y of the south kerb minus the ego's y."""
+    kerb_high: float
+    """y of the north kerb minus the ego's y."""
+    ego_length: float
+    """Ego length (m)."""
+    crossing_offset: float
+    """Added to the observed distance_to_stop_line to give the crossing centre's x relative to the ego."""
+    crossing_half_width: float
+    """Half the crossing width along x (m)."""
+    signalised: bool
+    """The crossing has a pedestrian signal."""
+    has_crossing: bool
+    """There is a marked crossing."""
+
+
+def _map_from_env(env: gym.Env) -> _Map:
+    scenario = getattr(env.unwrapped, "scenario", None)
+    if scenario is None:
+        raise ValueError(
+            "crossing intention needs a crossing_env env (env.unwrapped.scenario) for the static map"
+        )
+    road, crossing = scenario.road, scenario.crossing
+    ego_y = (scenario.ego.lane + 0.5) * road.lane_width
+    length = scenario.traffic.length
+    return _Map(
+        kerb_low=-ego_y,
+        kerb_high=road.num_lanes * road.lane_width - ego_y,
+        ego_length=length,
+        crossing_offset=crossing.stop_line_offset + crossing.width / 2 + length / 2,
+        crossing_half_width=crossing.width / 2,
+        signalised=crossing.kind == "signalised",
+        has_crossing=crossing.kind != "none",
+    )
+
+
+GAP_GRID = np.linspace(0.0, 40.0, 4001)
+"""Gaps (s) at which the look rate is tabulated; beyond 40 s the belief is 1 to within 1e-20."""
+
+
+def look_probability(gap: np.ndarray, variant: Variant, config: IntentionConfig) -> np.ndarray:
+    """Per-look crossing probability at the kerb for gaps (s), the critical gap marginalised out.
+
+    Args:
+        gap: Gaps in seconds (inf allowed).
+        variant: "qlb" (disjunction with the similarity-heuristic phase) or "cbm" (classical).
+        config: Model parameters.
+
+    Returns:
+        Probabilities, the shape of `gap`.
+    """
+    c = config
+    quantiles = _lognormal_quantiles(
+        c.critical_gap_mean, c.critical_gap_std, c.critical_gap_floor, c.quantiles
+    )
+    z = (np.asarray(gap, dtype=np.float64)[..., None] - quantiles) / c.belief_scale
+    belief = np.mean(0.5 * (1.0 + np.tanh(0.5 * np.clip(z, -50.0, 50.0))), axis=-1)
+    if variant == "qlb":
+        return disjunction_probabilities(c.p_cross_safe, c.p_cross_unsafe, belief, None)
+    return belief * c.p_cross_safe + (1.0 - belief) * c.p_cross_unsafe
+
+
+def look_rate_table(variant: Variant, config: IntentionConfig, factor: float = 1.0) -> np.ndarray:
+    """Decision rate (1/s) on `GAP_GRID`: ``-log(1 - factor * p_look) / decision_interval``."""
+    p = np.minimum(factor * look_probability(GAP_GRID, variant, config), 1.0 - 1e-9)
+    return -np.log1p(-p) / config.decision_interval
+
+
+def crossing_intention(
+    obs: dict[str, np.ndarray],
+    horizon: float,
+    road_map: _Map,
+    config: IntentionConfig,
+    rate_table: np.ndarray,
+    red_rate_table: np.ndarray,
+) -> np.ndarray:
+    """Per-slot crossing probability within `horizon` from one observation (see the module docstring).
+
+    Args:
+        obs: The env observation ("pedestrians" (K, 8), "vehicles" (M, 7), "ego" (6,)).
+        horizon: Seconds ahead.
+        road_map: Static map facts relative to the ego.
+        config: Model parameters.
+        rate_table: `look_rate_table` of the variant (the only place QLB and CBM differ).
+        red_rate_table: The same for pedestrians facing red.
+
+    Returns:
+        (K,) float32 in [0, 1], 0 for absent slots.
+    """
+    c = config
+    ped = obs["pedestrians"].astype(np.float64)
+    veh = obs["vehicles"].astype(np.float64)
+    ego = obs["ego"].astype(np.float64)
+    present = ped[:, 0] > 0.5
+    dx, dy, vx, vy = ped[:, 1], ped[:, 2], ped[:, 3], ped[:, 4]
+    on_road = ped[:, 7] > 0.5
+    speed = max(float(ego[0]), 0.0)
+    half_len = road_map.ego_length / 2
+
+    # Time until the ego's rear passes the pedestrian's x (the event needs the pedestrian ahead of it).
+    ahead = dx + half_len
+    t_pass = np.where(ahead <= 0.0, 0.0, ahead / max(speed, 1e-3))
+    window_end = np.minimum(horizon, t_pass)
+
+    # Where the pedestrian is relative to the nearer kerb and how fast it walks towards the road.
+    south = dy < road_map.kerb_low
+    kerb_dist = np.where(south, road_map.kerb_low - dy, dy - road_map.kerb_high)
+    towards = np.where(south, vy, -vy)
+    waiting = ped[:, 6] > 0.5
+    walking_in = (towards > c.towards_speed) & ~waiting
+    # From the spot where it decides to the carriageway: the remaining distance, plus the start from rest.
+    t_enter = np.where(waiting, np.maximum(kerb_dist, 0.0), c.kerb_standoff) / c.walking_speed + c.start_delay
+    t_walk_in = np.maximum(kerb_dist - c.kerb_standoff, 0.0) / np.maximum(towards, c.towards_speed)
+    # Walking along the sidewalk: to the crossing (if any) then to the kerb.
+    cross_dx = ego[2] + road_map.crossing_offset - dx if road_map.has_crossing else np.zeros_like(dx)
+    along = np.maximum(np.abs(cross_dx) - road_map.crossing_half_width, 0.0)
+    t_along = (along + np.maximum(kerb_dist - c.kerb_standoff, 0.0)) / c.walking_speed
+    t_kerb = np.where(waiting, 0.0, np.where(walking_in, t_walk_in, t_along))
+    walking_away = (towards < -c.towards_speed) & ~waiting
+    to_crossing = (vx * cross_dx > 0.0) | (along <= 1.0)
+    p_along = np.where(to_crossing, c.intent_prior, c.intent_leaving_crossing)
+    p_intent = np.where(
+        waiting,
+        c.intent_waiting,
+        np.where(walking_in, c.intent_towards_road, np.where(walking_away, c.intent_away, p_along)),
+    )
+
+    # Gap at the moment the pedestrian would look: first approaching car to reach its x after t_kerb.
+    # Cars as rows (dx, vx, length), the ego first; absent vehicle slots are all zeros, hence not moving.
+    cars = np.empty((veh.shape[0] + 1, 3))
+    cars[0] = (0.0, speed, road_map.ego_length)
+    cars[1:] = veh[:, (1, 3, 5)]
+    car_spd = np.abs(cars[:, 1])
+    car_half = 0.5 * cars[:, 2]
+    dist = (dx[:, None] - cars[:, 0]) * np.sign(cars[:, 1]) - car_half  # car front to the ped's line
+    tta = np.where(dist >= 0.0, dist / np.maximum(car_spd, 0.3), -1.0)
+    tta[(dist < 0.0) & (dist > -2.0 * car_half - 0.5)] = 0.0  # a car body covering the line
+    tta -= t_kerb[:, None]
+    tta[(tta < 0.0) | (car_spd <= 0.3)] = np.inf  # cars gone by the time it looks, or not moving
+    gap = tta.min(axis=1)
+
+    # Decision rate at that gap (tabulated: belief averaged over the unknown critical gap, then CBM or QLB).
+    rate = np.interp(gap, GAP_GRID, rate_table)
+    if road_map.signalised and ego[4] > 0.5:  # cars green: pedestrians at the crossing face red
+        at_crossing = np.abs(cross_dx) <= road_map.crossing_half_width + 1.0
+        rate = np.where(at_crossing, np.interp(gap, GAP_GRID, red_rate_table), rate)
+    window = np.maximum(window_end - t_kerb - t_enter, 0.0)
+    p_start = p_intent * -np.expm1(-rate * window)
+
+    prob = np.where(on_road, np.where(ahead > 0.0, c.on_road_ahead, 0.0), p_start)
+    return np.where(present, np.clip(prob, 0.0, 1.0), 0.0).astype(np.float32)
+
+
+class CrossingIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
+    """Add ``crossing_intention`` (K,) to a crossing_env Dict observation (see the module docstring).
+
+    Args:
+        env: A ``crossing_env/Crossing-v0`` env (possibly wrapped).
+        horizon: Seconds ahead.
+        variant: ``"qlb"`` (quantum-like) or ``"cbm"`` (classical Bayesian model).
+        config: Model parameters; defaults to `IntentionConfig()`.
+    """
+
+    def __init__(
+        self,
+        env: gym.Env,
+        horizon: float = 2.0,
+        variant: Variant = "qlb",
+        config: IntentionConfig | None = None,
+    ) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self, horizon=horizon, variant=variant, config=config)
+        gym.ObservationWrapper.__init__(self, env)
+        if not (math.isfinite(horizon) and horizon > 0.0):
+            raise ValueError(f"crossing intention: horizon must be > 0 seconds, got {horizon}")
+        if variant not in ("qlb", "cbm"):
+            raise ValueError(f"crossing intention: variant must be 'qlb' or 'cbm', got {variant!r}")
+        space = env.observation_space
+        if not isinstance(space, spaces.Dict) or not {"pedestrians", "vehicles", "ego"} <= set(space.spaces):
+            raise ValueError(
+                f"crossing intention needs a Dict observation with pedestrians/vehicles/ego, got {space}"
+            )
+        self.horizon = float(horizon)
+        self.variant: Variant = variant
+        self.config = config or IntentionConfig()
+        self._rates = look_rate_table(variant, self.config)
+        self._red_rates = look_rate_table(variant, self.config, self.config.red_light_prior)
+        self._map = _map_from_env(env)
+        k = space.spaces["pedestrians"].shape[0]
+        new = dict(space.spaces)
+        new["crossing_intention"] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
+        self.observation_space = spaces.Dict(new)
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
+        """Reset the env and refresh the static map (``options={"scenario": ...}`` may change it)."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        self._map = _map_from_env(self.env)
+        return self.observation(obs), info
+
+    def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """The observation with ``crossing_intention`` added."""
+        out = dict(observation)
+        out["crossing_intention"] = crossing_intention(
+            observation, self.horizon, self._map, self.config, self._rates, self._red_rates
+        )
+        return out
+
+
+class QLBIntention(CrossingIntention):
+    """Quantum-like (QLB) crossing intention: the disjunction over "gap safe" with interference."""
+
+    def __init__(self, env: gym.Env, horizon: float = 2.0, config: IntentionConfig | None = None) -> None:
+        gym.utils.RecordConstructorArgs.__init__(
+            self, horizon=horizon, config=config
+        )  # first: it keeps the first call
+        super().__init__(env, horizon=horizon, variant="qlb", config=config)
+
+
+class ClassicalIntention(CrossingIntention):
+    """Classical Bayesian (CBM) crossing intention: the same network without interference."""
+
+    def __init__(self, env: gym.Env, horizon: float = 2.0, config: IntentionConfig | None = None) -> None:
+        gym.utils.RecordConstructorArgs.__init__(
+            self, horizon=horizon, config=config
+        )  # first: it keeps the first call
+        super().__init__(env, horizon=horizon, variant="cbm", config=config)
