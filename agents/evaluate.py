@@ -38,8 +38,8 @@ from typing import Any
 
 import numpy as np
 
-DEFAULT_EPISODES = 6
-"""Episodes per (scenario, policy) in the default run: 8 scenarios x 6 seeds x 5 policies = 240 episodes."""
+DEFAULT_EPISODES = 5
+"""Episodes per (scenario, policy) in the default run: 8 scenarios x 5 seeds x 5 policies = 200 episodes."""
 DEFAULT_SEED = 2024
 """Base seed of the default run."""
 DEFAULT_OUT = "crossing-eval-results"

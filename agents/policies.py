@@ -68,7 +68,7 @@ class DrivingConfig:
     """Lateral offset (m, ego frame) of the left-hand (north) kerb."""
     cruise_gain: float = 0.8
     """Proportional gain (1/s) of the speed controller towards the cruising speed."""
-    cruise_acceleration: float = 1.5
+    cruise_acceleration: float = 2.0
     """Largest acceleration (m/s²) used when speeding up to the cruising speed."""
     idm_time_headway: float = 1.2
     """IDM desired time headway T (s) to a vehicle ahead in the ego's lane."""
@@ -116,8 +116,12 @@ class YieldingConfig(DrivingConfig):
     waiting_speed: float = 0.5
     """Speed (m/s) below which a pedestrian near the kerb counts as waiting."""
     intention_threshold: float = 0.5
-    """With `crossing_intention` in the observation, waiting pedestrians below this probability are not
-    yielded to (the point of the intention predictor: less needless stopping)."""
+    """With `crossing_intention` in the observation, a pedestrian off the road with at least this
+    probability is treated as about to cross: at the crossing it is yielded to like a waiting one, elsewhere
+    it is assumed to step towards the ego's lane at `assumed_walking_speed` in the conflict check. Waiting
+    pedestrians are yielded to whatever the estimate (the legal duty does not depend on it)."""
+    assumed_walking_speed: float = 1.4
+    """Speed (m/s) at which a pedestrian predicted to cross is assumed to walk into the road."""
     use_predictions: bool = True
     """Use `crossing_intention` / `predicted_paths` when the observation has them."""
     stop_gain: float = 2.0
@@ -385,7 +389,7 @@ class YieldingPolicy:
 
     1. **Legal yield** (zebra, UK rule 195 / StVO §26): a pedestrian on the crossing inside the ego's half
        of the road or walking towards it, or one waiting at the kerb within the crossing's extent ±
-       `kerb_margin` (and, with the intention predictor on, likely to cross), makes the car stop before
+       `kerb_margin` (or, with the intention predictor on, likely to cross there), makes the car stop before
        the stop line; at a signalised crossing a red light for cars does. Attempted only if it needs at most
        `yield_max_deceleration`: a car that can no longer stop comfortably does not slam on the brakes for a
        pedestrian still on the kerb.
@@ -466,9 +470,10 @@ class YieldingPolicy:
         kerb_gap = np.minimum(np.abs(view.py - cfg.road_right), np.abs(view.py - cfg.road_left))
         slow = np.hypot(view.vx, view.vy) < cfg.waiting_speed
         waiting = (view.waiting | (view.present & slow & (kerb_gap <= cfg.kerb_distance))) & ~view.on_road
+        likely = None
         if use_pred and view.intention is not None:
-            likely = view.intention >= cfg.intention_threshold
-            waiting = (waiting | (likely & view.present & ~view.on_road)) & likely
+            likely = (view.intention >= cfg.intention_threshold) & view.present & ~view.on_road
+            waiting = waiting | likely
         zebra = view.zebra[:, None] > 0.5
         legal_xing = (zebra & crossing_ahead & at_crossing & on_xing).any(axis=1)
         legal_wait = (zebra & crossing_ahead & at_crossing & waiting).any(axis=1)
@@ -488,6 +493,14 @@ class YieldingPolicy:
             x_in = np.where(pt_in < t_in, px_in, x_in)
             t_in = np.minimum(t_in, pt_in)
             t_out = np.maximum(t_out, pt_out)
+        if likely is not None:
+            # Anticipation: a pedestrian the intention estimate expects to cross walks straight in.
+            towards_lane = np.where(view.py > 0.0, -1.0, 1.0) * cfg.assumed_walking_speed
+            a_in, a_out = _corridor_interval(view.py, towards_lane, hw)
+            a_in = np.where(likely, a_in, np.inf)
+            x_in = np.where(a_in < t_in, view.px, x_in)
+            t_in = np.minimum(t_in, a_in)
+            t_out = np.maximum(t_out, np.where(likely, a_out, -np.inf))
         behind = x_in + r < -front
         s_arr = x_in - r - front
         s_clr = x_in + r + front

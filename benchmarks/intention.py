@@ -70,6 +70,25 @@ def brier(scores: np.ndarray, labels: np.ndarray) -> float:
     return float(np.mean((scores - labels) ** 2))
 
 
+def paired_bootstrap(
+    q: np.ndarray,
+    c: np.ndarray,
+    y: np.ndarray,
+    episode: np.ndarray,
+    episodes: int,
+    seed: int,
+    draws: int = 2000,
+) -> tuple[float, float]:
+    """95 % interval of Brier(q) - Brier(c), resampling whole episodes (samples within one are correlated)."""
+    diff = np.bincount(episode, weights=(q - y) ** 2 - (c - y) ** 2, minlength=episodes)
+    count = np.bincount(episode, minlength=episodes).astype(np.float64)
+    rng = np.random.default_rng(seed)
+    pick = rng.integers(0, episodes, size=(draws, episodes))
+    stats = diff[pick].sum(axis=1) / np.maximum(count[pick].sum(axis=1), 1.0)
+    lo, hi = np.percentile(stats, [2.5, 97.5])
+    return float(lo), float(hi)
+
+
 def run_episode(scenario: ScenarioConfig, seed: int) -> dict[str, np.ndarray]:
     """One episode: per (step, present slot) predictions of both variants at every horizon and the labels."""
     env = CrossingEnv(scenario)
@@ -138,13 +157,14 @@ def evaluate(episodes: int, seed: int) -> tuple[list[str], dict[str, float]]:
     }
     lines = [
         "| world | subset | h (s) | samples | positives | Brier QLB | Brier CBM | Brier base "
-        "| AUC QLB | AUC CBM | AUC base |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| Brier QLB - CBM [95% CI] | AUC QLB | AUC CBM | AUC base |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     summary: dict[str, float] = {}
     for wname, scenario in worlds.items():
         results = [run_episode(scenario, seed + e) for e in range(episodes)]
         data = {key: np.concatenate([r[key] for r in results]) for key in results[0]}
+        episode = np.concatenate([np.full(r["on_road"].size, e) for e, r in enumerate(results)])
         for subset in ("all", "not on road"):
             for h in HORIZONS:
                 keep = data[f"keep_{h}"] & (~data["on_road"] if subset == "not on road" else True)
@@ -154,6 +174,7 @@ def evaluate(episodes: int, seed: int) -> tuple[list[str], dict[str, float]]:
                 rate = float(y.mean()) if y.size else float("nan")
                 const = np.full(y.size, rate)
                 vals = (brier(q, y), brier(c, y), brier(const, y), roc_auc(q, y), roc_auc(c, y), 0.5)
+                lo, hi = paired_bootstrap(q, c, y, episode[keep], episodes, seed)
                 for name, v in zip(
                     ("brier_qlb", "brier_cbm", "brier_base", "auc_qlb", "auc_cbm"), vals, strict=False
                 ):
@@ -161,7 +182,7 @@ def evaluate(episodes: int, seed: int) -> tuple[list[str], dict[str, float]]:
                 lines.append(
                     f"| {wname} | {subset} | {h:g} | {y.size} | {int(y.sum())} | "
                     + " | ".join(f"{v:.4f}" for v in vals[:3])
-                    + " | "
+                    + f" | {vals[0] - vals[1]:+.4f} [{lo:+.4f}, {hi:+.4f}] | "
                     + " | ".join(f"{v:.3f}" for v in vals[3:])
                     + " |"
                 )

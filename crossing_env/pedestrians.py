@@ -32,6 +32,8 @@ ARRIVAL_TOLERANCE = 0.35
 """Distance in metres at which a waypoint counts as reached."""
 KERB_ARRIVAL = (2.0, 0.6)
 """(along x, across y) metres within which a pedestrian heading for a kerb point counts as arrived at it."""
+DISTRACTED_LOOK_DELAY = 1.0
+"""Seconds by which a distracted pedestrian's view of the traffic lags (late reaction to approaching cars)."""
 GROUP_JOIN_DISTANCE = 1.5
 """Metres from a waiting companion at which a group member walking up counts as arrived at the kerb."""
 GROUP_MAX_WAIT = 15.0
@@ -318,8 +320,10 @@ class PedestrianPopulation:
             red = np.full(waiting.size, pedestrian_green is False)
             red &= ~self.jaywalker[waiting]  # the signal only governs the zebra
             gap = self.gaps(cars, waiting)
+            # A distracted pedestrian looks up late: it judges the gap it saw DISTRACTED_LOOK_DELAY ago.
+            seen = gap + DISTRACTED_LOOK_DELAY * self.distracted[waiting]
             ctx = DecisionContext(
-                gap=gap,
+                gap=seen,
                 critical_gap=self.critical_gap[waiting],
                 phase=self.phase[waiting],
                 waited=self.wait_time[waiting],

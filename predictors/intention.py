@@ -205,8 +205,8 @@ def crossing_intention(
     """
     c = config
     ped = obs["pedestrians"].astype(np.float64)
-    veh = obs["vehicles"].astype(np.float64)
-    ego = obs["ego"].astype(np.float64)
+    veh = obs["vehicles"]
+    ego = obs["ego"]
     present = ped[:, 0] > 0.5
     dx, dy, vx, vy = ped[:, 1], ped[:, 2], ped[:, 3], ped[:, 4]
     on_road = ped[:, 7] > 0.5
@@ -228,7 +228,7 @@ def crossing_intention(
     t_enter = np.where(waiting, np.maximum(kerb_dist, 0.0), c.kerb_standoff) / c.walking_speed + c.start_delay
     t_walk_in = np.maximum(kerb_dist - c.kerb_standoff, 0.0) / np.maximum(towards, c.towards_speed)
     # Walking along the sidewalk: to the crossing (if any) then to the kerb.
-    cross_dx = ego[2] + road_map.crossing_offset - dx if road_map.has_crossing else np.zeros_like(dx)
+    cross_dx = float(ego[2]) + road_map.crossing_offset - dx if road_map.has_crossing else np.zeros_like(dx)
     along = np.maximum(np.abs(cross_dx) - road_map.crossing_half_width, 0.0)
     t_along = (along + np.maximum(kerb_dist - c.kerb_standoff, 0.0)) / c.walking_speed
     t_kerb = np.where(waiting, 0.0, np.where(walking_in, t_walk_in, t_along))
@@ -263,8 +263,8 @@ def crossing_intention(
     window = np.maximum(window_end - t_kerb - t_enter, 0.0)
     p_start = p_intent * -np.expm1(-rate * window)
 
-    prob = np.where(on_road, np.where(ahead > 0.0, c.on_road_ahead, 0.0), p_start)
-    return np.where(present, np.clip(prob, 0.0, 1.0), 0.0).astype(np.float32)
+    prob = np.where(on_road, (ahead > 0.0) * c.on_road_ahead, p_start)  # all factors lie in [0, 1]
+    return (prob * present).astype(np.float32)
 
 
 class CrossingIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):

@@ -319,17 +319,41 @@ class SocialRecurrent(nn.Module):
         return self.rollout(obs, seq_start_end)[1]
 
     def sample(
-        self, obs: torch.Tensor, seq_start_end: torch.Tensor, num_samples: int, generator: torch.Generator
+        self,
+        obs: torch.Tensor,
+        seq_start_end: torch.Tensor,
+        num_samples: int,
+        generator: torch.Generator,
+        mode: str = "correlated",
     ) -> torch.Tensor:
-        """``(S, N, 12, 2)`` futures sampled autoregressively, all samples batched in one rollout.
+        """``(S, N, 12, 2)`` sampled futures.
 
-        Each sample is a joint draw for the whole window (neighbours see each other's sampled positions).
+        Modes:
+            ``autoregressive``: draw each displacement and feed it back (all samples batched in one rollout;
+                each sample is a joint draw for the window). With the constant-velocity residual a drawn
+                displacement becomes the next velocity, so velocity noise accumulates (over-dispersed).
+            ``independent``: add independent per-step draws from the most-likely rollout's Gaussians and
+                cumulate them (Social-STGCNN style; each sample is a random walk around the mean path).
+            ``correlated``: one standard-normal draw per sample and pedestrian, mapped through every step's
+                Gaussian and cumulated: a persistent velocity offset, like CVM-S's heading perturbation.
+        The mode was chosen on validation data, never on test.
         """
         n = obs.shape[0]
-        obs_k = obs.repeat(num_samples, 1, 1)
-        sse_k = replicate(seq_start_end, n, num_samples)
-        _, pos = self.rollout(obs_k, sse_k, generator=generator)
-        return pos.view(num_samples, n, -1, 2)
+        if mode == "autoregressive":
+            obs_k = obs.repeat(num_samples, 1, 1)
+            sse_k = replicate(seq_start_end, n, num_samples)
+            _, pos = self.rollout(obs_k, sse_k, generator=generator)
+            return pos.view(num_samples, n, -1, 2)
+        if mode not in ("independent", "correlated"):
+            raise ValueError(f"sample mode must be autoregressive, independent or correlated, got {mode!r}")
+        raw, pos = self.rollout(obs, seq_start_end)
+        raw = raw[:, -pos.shape[1] :]  # (N, T, 5)
+        _, sigma, rho = gaussian_params(raw)
+        shape = (num_samples, n, pos.shape[1] if mode == "independent" else 1, 2)
+        e = torch.randn(shape, generator=generator, dtype=pos.dtype).to(pos.device)
+        x = sigma[..., 0] * e[..., 0]
+        y = sigma[..., 1] * (rho * e[..., 0] + torch.sqrt(1.0 - rho * rho) * e[..., 1])
+        return pos[None] + torch.cumsum(torch.stack([x, y], dim=-1), dim=2)
 
 
 def count_parameters(model: nn.Module) -> tuple[int, int]:

@@ -150,12 +150,23 @@ def test_yielding_uses_predictions_and_intention() -> None:
     assert accel(pol(obs_pred))[0] < -1.0
     assert accel(YieldingPolicy(YieldingConfig(use_predictions=False))(obs_pred))[0] >= 0.0
 
-    waiting = {"dx": crossing_centre(25.0), "dy": -2.6, "w": 1}
-    base = make_obs(12.0, 25.0, [waiting])
+    # Walking along the sidewalk towards the zebra (not waiting): yield only if predicted to cross.
+    walker = {"dx": crossing_centre(25.0) - 1.0, "dy": -3.0, "vx": 1.3}
+    base = make_obs(12.0, 25.0, [walker])
     low = dict(base, crossing_intention=np.r_[0.1, np.zeros(K - 1)].astype(np.float32))
     high = dict(base, crossing_intention=np.r_[0.9, np.zeros(K - 1)].astype(np.float32))
-    assert accel(pol(low))[0] >= 0.0  # predicted not to cross: no needless stop
+    assert accel(pol(base))[0] >= 0.0
+    assert accel(pol(low))[0] >= 0.0
     assert accel(pol(high))[0] < -2.0
+    # A waiting pedestrian is yielded to whatever the estimate says (the legal duty).
+    waiting = {"dx": crossing_centre(25.0), "dy": -2.6, "w": 1}
+    low_wait = dict(make_obs(12.0, 25.0, [waiting]), crossing_intention=low["crossing_intention"])
+    assert accel(pol(low_wait))[0] < -2.0
+    # Mid-block, standing at the kerb 18 m ahead: brake only when predicted to step out.
+    kerb = make_obs(10.0, 150.0, [{"dx": 18.0, "dy": -2.2}])
+    assert accel(pol(kerb))[0] >= 0.0
+    kerb_high = dict(kerb, crossing_intention=high["crossing_intention"])
+    assert accel(pol(kerb_high))[0] < -2.0
 
 
 def test_yielding_follows_vehicle_ahead_and_slows_beside_stopped_vehicle() -> None:

@@ -27,7 +27,8 @@ from crossing_env.config import (
     TrafficConfig,
 )
 from crossing_env.decisions import DecisionContext, GapAcceptance
-from crossing_env.pedestrians import CROSSING, WAITING, PedestrianPopulation
+from crossing_env.pedestrians import CROSSING, WAITING, CarSnapshot, PedestrianPopulation
+from crossing_env.types import BehaviourEvent
 from crossing_env.world import World
 
 HALF_PI = math.pi / 2
@@ -48,23 +49,14 @@ def _context(
     )
 
 
-def _run(scenario: ScenarioConfig, seconds: float, seed: int = 0) -> tuple[World, list, dict[int, int]]:
-    """Run a world with a parked ego; returns it, all events and the step at which each id spawned."""
+def _run(scenario: ScenarioConfig, seconds: float, seed: int = 0) -> tuple[World, list[BehaviourEvent]]:
+    """Run a world (the ego holds its speed) and return it with every behaviour event logged."""
     world = World(scenario, np.random.default_rng(seed))
     events = []
     for _ in range(round(seconds / world.dt)):
         world.step(0.0)
         events.extend(world.pedestrians.events)
-    return world, events, {}
-
-
-def _quiet(**behaviour: object) -> dict:
-    """Scenario pieces with no moving traffic (the ego stands still far from the crossing)."""
-    return {
-        "ego": EgoConfig(speed=0.0, x=20.0),
-        "traffic": TrafficConfig(flow_per_lane=0.0),
-        "duration": 1000.0,
-    }
+    return world, events
 
 
 # ------------------------------------------------------------------ the decision model
@@ -219,7 +211,7 @@ def test_irrational_acts_happen_at_their_configured_rates() -> None:
         "turn_back_rate": 0.15,
         "jaywalk_rate": 0.2,
     }
-    world, events, _ = _run(_rate_scenario(**rates), seconds=260.0, seed=4)
+    world, events = _run(_rate_scenario(**rates), seconds=260.0, seed=4)
     kinds: dict[str, set[int]] = defaultdict(set)
     for e in events:
         kinds[e.kind].add(e.pedestrian_id)
@@ -260,7 +252,7 @@ def test_zero_rates_give_no_irrational_acts() -> None:
         "jaywalk_rate": 0.0,
         "red_light_rate": 0.0,
     }
-    _, events, _ = _run(_rate_scenario(**zero), seconds=40.0, seed=5)
+    _, events = _run(_rate_scenario(**zero), seconds=40.0, seed=5)
     kinds = {e.kind for e in events}
     assert kinds == {"start_crossing"}
 
@@ -306,7 +298,7 @@ def test_groups_cross_together() -> None:
         pedestrians=PedestrianConfig(spawns=spawns, spawn_rate=0.0, behaviour=behaviour),
     )
     for seed in range(3):
-        _, events, _ = _run(scenario, seconds=40.0, seed=seed)
+        _, events = _run(scenario, seconds=40.0, seed=seed)
         start = {e.pedestrian_id: e.time for e in events if e.kind == "start_crossing"}
         assert len(start) == 5
         assert start[0] == start[1]
@@ -335,13 +327,13 @@ def _signal_scenario(red_light_rate: float) -> ScenarioConfig:
 
 
 def test_nobody_crosses_on_red_when_the_rate_is_zero() -> None:
-    world, events, _ = _run(_signal_scenario(0.0), seconds=65.0, seed=7)
+    world, events = _run(_signal_scenario(0.0), seconds=65.0, seed=7)
     assert not any(e.kind in ("red_light", "start_crossing") for e in events)  # 65 s of red from t = 0
     assert int((world.pedestrians.state == WAITING).sum()) > 10  # many are waiting at the kerb
 
 
 def test_red_light_violators_cross_at_the_configured_rate() -> None:
-    _, events, _ = _run(_signal_scenario(1.0), seconds=30.0, seed=7)
+    _, events = _run(_signal_scenario(1.0), seconds=30.0, seed=7)
     red = {e.pedestrian_id for e in events if e.kind == "red_light"}
     starts = {e.pedestrian_id for e in events if e.kind == "start_crossing"}
     assert len(red) > 10 and red == starts
@@ -362,12 +354,12 @@ def test_same_seed_same_pedestrians() -> None:
     )
     runs = []
     for _ in range(2):
-        world, events, _ = _run(scenario, seconds=30.0, seed=9)
+        world, events = _run(scenario, seconds=30.0, seed=9)
         runs.append((world.pedestrians.position.copy(), world.pedestrians.force_intensity.copy(), events))
     np.testing.assert_array_equal(runs[0][0], runs[1][0])
     np.testing.assert_array_equal(runs[0][1], runs[1][1])
     assert runs[0][2] == runs[1][2] and len(runs[0][2]) > 5
-    other, _, _ = _run(scenario, seconds=30.0, seed=10)
+    other, _ = _run(scenario, seconds=30.0, seed=10)
     assert not np.array_equal(other.pedestrians.position, runs[0][0])
 
 
@@ -409,3 +401,37 @@ def test_force_update_raises_intensity_near_irrational_pedestrians() -> None:
     for _ in range(100):
         off.step(0.0)
     assert np.all(off.pedestrians.force_intensity == scenario.pedestrians.social_force.ped_intensity)
+
+
+def test_distracted_pedestrian_takes_a_gap_an_attentive_one_refuses() -> None:
+    spawns = (
+        PedestrianSpawn(x=120.0, side="south", critical_gap=6.0, distracted=False),
+        PedestrianSpawn(x=120.0, side="north", critical_gap=6.0, distracted=True),
+    )
+    behaviour = BehaviourConfig(
+        decision_model="gap", turn_back_rate=0.0, hesitation_rate=0.0, running_rate=0.0
+    )
+    scenario = ScenarioConfig(
+        ego=EgoConfig(speed=0.0, x=20.0),
+        traffic=TrafficConfig(flow_per_lane=0.0),
+        pedestrians=PedestrianConfig(spawns=spawns, spawn_rate=0.0, behaviour=behaviour),
+    )
+    world = World(scenario, np.random.default_rng(12))
+    peds = world.pedestrians
+    world.step(0.0)  # spawns both
+    peds.state[:2] = WAITING  # put them at their kerb points, about to decide
+    peds.position[:2] = peds.waypoint[:2]
+    peds.velocity[:2] = 0.0
+    # One car on each side, 5 s from each pedestrian's line: under the attentive pedestrian's 6 s critical
+    # gap; the distracted one (critical gap x 0.7, view 1 s late) takes it.
+    x = peds.crossing_x[:2]
+    cars = CarSnapshot(
+        x=np.array([x[0] - 50.0 - 2.25, x[1] + 50.0 + 2.25]),
+        lane=np.array([0, 1]),
+        direction=np.array([1.0, -1.0]),
+        speed=np.array([10.0, 10.0]),
+        half_length=np.array([2.25, 2.25]),
+        boxes=np.zeros((0, 4)),
+    )
+    peds.step(world.time + 0.1, cars, None)
+    assert peds.state[0] == WAITING and peds.state[1] == CROSSING

@@ -123,12 +123,22 @@ def test_wrapper_cost_per_step_is_small() -> None:
     env = TrajectoryPrediction(base)
     env.reset(seed=0)
     obs = base._obs()
-    for _ in range(10):
-        env.observation(obs)
-    t0 = time.perf_counter()
-    n = 50
-    for _ in range(n):
-        env.observation(obs)
-    ms = (time.perf_counter() - t0) / n * 1e3
-    # Target is 2 ms on an idle core (benchmarks/predictors.py measures it); allow for a shared CI machine.
-    assert ms < 20.0, ms
+    rng = np.random.default_rng(0)
+    moved = [
+        {**obs, "pedestrian_history": obs["pedestrian_history"] + rng.normal(size=(1, 1, 2))}
+        for _ in range(30)
+    ]
+    for o in moved[:5]:
+        env.observation(o)
+    t0 = time.thread_time()  # CPU time of this thread: robust to other processes on a shared machine
+    for o in moved[5:]:
+        env.observation(o)
+    ms = (time.thread_time() - t0) / 25 * 1e3
+    # The target is 2 ms (benchmarks/predictors.py reports it); this is a loose regression guard.
+    assert ms < 30.0, ms
+    # an unchanged history is served from the cache, identically
+    a = env.observation(moved[-1])["predicted_paths"]
+    t1 = time.thread_time()
+    b = env.observation(moved[-1])["predicted_paths"]
+    assert time.thread_time() - t1 < 1e-3 * ms
+    np.testing.assert_array_equal(a, b)
