@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import inspect
 import io
 import json
 import math
@@ -500,11 +501,8 @@ def save_worst(records: Sequence[EpisodeRecord], out: Path, n: int = WORST_EPISO
         t = rec.task
         name = f"{rank:02d}_{Path(t.scenario).stem}_{t.policy}_ep{t.episode}.json"
         meta = {"rank": rank, "episode": t.episode, "metrics": rec.result, "predictors": rec.predictors}
-        predictor = (
-            t.predictor
-            if t.predictor != "none" and any(p.startswith("trajectory") for p in rec.predictors)
-            else None
-        )
+        predictor = t.predictor if f"trajectory:{t.predictor}" in rec.predictors else None
+        intention = t.intention if f"intention:{t.intention}" in rec.predictors else None
         try:
             from crossing_env.replay import save_episode_log
         except ImportError:
@@ -515,12 +513,18 @@ def save_worst(records: Sequence[EpisodeRecord], out: Path, n: int = WORST_EPISO
                 "seed": t.seed,
                 "policy": t.policy,
                 "predictor": predictor,
+                "intention": intention,
                 "actions": rec.actions,
                 "metadata": meta,
             }
             _atomic_write_bytes(folder / name, json.dumps(payload, indent=1).encode("utf-8"))
         else:
             folder.mkdir(parents=True, exist_ok=True)
+            extra = (
+                {"intention": intention}
+                if "intention" in inspect.signature(save_episode_log).parameters
+                else {}
+            )
             save_episode_log(
                 folder / name,
                 scenario=t.scenario,
@@ -530,6 +534,7 @@ def save_worst(records: Sequence[EpisodeRecord], out: Path, n: int = WORST_EPISO
                 predictor=predictor,
                 final_ground_truth=rec.final_ground_truth,
                 metadata=meta,
+                **extra,
             )
         names.append(name)
     return names

@@ -1,9 +1,10 @@
 """Env steps per second of Crossing-v0 against highway-env's intersection-v0, measured in one run.
 
-Both envs run a random policy with no rendering, resets included. Machines here are noisy, so the
-figure that matters is the ratio printed at the end, not the absolute numbers.
+Both envs run a random policy with no rendering, resets included. Machines here are noisy, so the two
+envs are timed in alternating bursts (one burst each per round) and the ratio of the totals is what
+matters, not the absolute numbers.
 
-    python benchmarks/env_throughput.py [--seconds 10] [--scenario default]
+    python benchmarks/env_throughput.py [--rounds 8] [--burst 1.0] [--scenario default] [--wrappers]
 """
 
 from __future__ import annotations
@@ -13,55 +14,69 @@ import time
 import warnings
 
 import gymnasium as gym
-import numpy as np
 
 import crossing_env  # noqa: F401  (registers Crossing-v0)
 
 
-def steps_per_second(env: gym.Env, seconds: float, seed: int = 0) -> tuple[float, int]:
-    """Random-policy steps per second over roughly `seconds` of wall time (resets included)."""
-    env.reset(seed=seed)
-    env.action_space.seed(seed)
-    steps, episodes = 0, 0
-    start = time.perf_counter()
-    while time.perf_counter() - start < seconds:
-        for _ in range(20):
-            _, _, terminated, truncated, _ = env.step(env.action_space.sample())
-            steps += 1
-            if terminated or truncated:
-                episodes += 1
-                env.reset()
-    return steps / (time.perf_counter() - start), episodes
+class Timer:
+    """Accumulates random-policy steps and wall time of one env across bursts."""
+
+    def __init__(self, env: gym.Env, seed: int = 0) -> None:
+        self.env = env
+        env.reset(seed=seed)
+        env.action_space.seed(seed)
+        self.steps = 0
+        self.seconds = 0.0
+        self.episodes = 0
+
+    def burst(self, seconds: float) -> None:
+        """Step for about `seconds`."""
+        start = time.perf_counter()
+        while time.perf_counter() - start < seconds:
+            for _ in range(10):
+                _, _, terminated, truncated, _ = self.env.step(self.env.action_space.sample())
+                self.steps += 1
+                if terminated or truncated:
+                    self.episodes += 1
+                    self.env.reset()
+        self.seconds += time.perf_counter() - start
+
+    @property
+    def rate(self) -> float:
+        """Steps per second so far."""
+        return self.steps / self.seconds
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seconds", type=float, default=10.0, help="wall time per env")
+    parser.add_argument("--rounds", type=int, default=8, help="alternating rounds")
+    parser.add_argument("--burst", type=float, default=1.0, help="seconds per env per round")
     parser.add_argument("--scenario", default="default", help="Crossing-v0 scenario name or path")
     parser.add_argument("--wrappers", action="store_true", help="also time Crossing-v0 with each predictor wrapper")
     args = parser.parse_args()
+    if args.rounds < 1 or args.burst <= 0:
+        parser.error("--rounds must be >= 1 and --burst > 0")
 
-    ours = gym.make("crossing_env/Crossing-v0", scenario=args.scenario)
-    ours_sps, ours_eps = steps_per_second(ours, args.seconds)
-    print(f"Crossing-v0 ({args.scenario}): {ours_sps:9.1f} steps/s ({ours_eps} episodes)")
-    rows = [("Crossing-v0", ours_sps)]
+    import highway_env  # noqa: F401  (registers intersection-v0)
+
+    timers = {"Crossing-v0": Timer(gym.make("crossing_env/Crossing-v0", scenario=args.scenario))}
     if args.wrappers:
         from predictors.registry import available_wrappers
 
         for name, wrap in available_wrappers().items():
-            sps, _ = steps_per_second(wrap(gym.make("crossing_env/Crossing-v0", scenario=args.scenario)), args.seconds)
-            print(f"Crossing-v0 + {name}: {sps:9.1f} steps/s")
-            rows.append((f"+ {name}", sps))
-
-    import highway_env  # noqa: F401  (registers intersection-v0)
-
+            timers[f"Crossing-v0 + {name}"] = Timer(wrap(gym.make("crossing_env/Crossing-v0", scenario=args.scenario)))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # intersection-v0 warns that it is out of date
-        peer = gym.make("intersection-v0")
-        peer_sps, peer_eps = steps_per_second(peer, args.seconds)
-    print(f"highway-env intersection-v0: {peer_sps:9.1f} steps/s ({peer_eps} episodes)")
-    print(f"ratio Crossing-v0 / intersection-v0: {ours_sps / peer_sps:.1f}x (target >= 100x)")
-    np.set_printoptions(precision=1)
+        peer = Timer(gym.make("intersection-v0"))
+        for _ in range(args.rounds):
+            peer.burst(args.burst)
+            for timer in timers.values():
+                timer.burst(args.burst)
+    for name, timer in timers.items():
+        print(f"{name:40s} {timer.rate:9.1f} steps/s ({timer.episodes} episodes)  "
+              f"ratio to intersection-v0: {timer.rate / peer.rate:6.1f}x")
+    print(f"{'highway-env intersection-v0':40s} {peer.rate:9.1f} steps/s ({peer.episodes} episodes)")
+    print(f"scenario: {args.scenario}; target for bare Crossing-v0: >= 100x")
 
 
 if __name__ == "__main__":

@@ -281,7 +281,10 @@ class PedestrianPopulation:
         self._update_velocities(cars)
 
     def _update_states(self, cars: CarSnapshot, pedestrian_green: bool | None) -> None:
-        dist = np.linalg.norm(self.waypoint - self.position, axis=1)
+        if not self.state.any():
+            return  # nobody around: nothing to decide
+        delta = self.waypoint - self.position
+        dist = np.sqrt(delta[:, 0] * delta[:, 0] + delta[:, 1] * delta[:, 1])
         arrived = dist < ARRIVAL_TOLERANCE
         st = self.state
         # In a crowd the exact kerb point may be taken by someone else: close to it along the kerb counts,

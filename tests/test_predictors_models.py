@@ -154,11 +154,17 @@ def test_models_train_sample_and_are_deterministic(kind: str) -> None:
     with torch.no_grad():
         pred = m.predict(obs, sse)
         assert pred.shape == fut.shape
-        s1 = m.sample(obs, sse, 5, torch.Generator().manual_seed(3))
-        s2 = m.sample(obs, sse, 5, torch.Generator().manual_seed(3))
-    assert s1.shape == (5, *fut.shape)
-    torch.testing.assert_close(s1, s2)
-    assert float((s1[0] - s1[1]).abs().max()) > 0.0
+        for mode in ("autoregressive", "independent", "correlated"):
+            s1 = m.sample(obs, sse, 5, torch.Generator().manual_seed(3), mode=mode)
+            s2 = m.sample(obs, sse, 5, torch.Generator().manual_seed(3), mode=mode)
+            assert s1.shape == (5, *fut.shape)
+            torch.testing.assert_close(s1, s2)
+            assert float((s1[0] - s1[1]).abs().max()) > 0.0
+        # the sampled spread is centred on the most-likely path for the Gaussian-noise modes
+        many = m.sample(obs, sse, 4000, torch.Generator().manual_seed(0), mode="correlated")
+        torch.testing.assert_close(many.mean(0), pred, atol=0.1, rtol=0)
+        with pytest.raises(ValueError, match="mode"):
+            m.sample(obs, sse, 2, torch.Generator(), mode="magic")
 
 
 def test_prediction_of_one_window_ignores_other_windows() -> None:
