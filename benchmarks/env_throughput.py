@@ -48,11 +48,15 @@ class Timer:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--rounds", type=int, default=8, help="alternating rounds")
     parser.add_argument("--burst", type=float, default=1.0, help="seconds per env per round")
     parser.add_argument("--scenario", default="default", help="Crossing-v0 scenario name or path")
-    parser.add_argument("--wrappers", action="store_true", help="also time Crossing-v0 with each predictor wrapper")
+    parser.add_argument(
+        "--wrappers", action="store_true", help="also time Crossing-v0 with each predictor wrapper"
+    )
     args = parser.parse_args()
     if args.rounds < 1 or args.burst <= 0:
         parser.error("--rounds must be >= 1 and --burst > 0")
@@ -64,7 +68,9 @@ def main() -> None:
         from predictors.registry import available_wrappers
 
         for name, wrap in available_wrappers().items():
-            timers[f"Crossing-v0 + {name}"] = Timer(wrap(gym.make("crossing_env/Crossing-v0", scenario=args.scenario)))
+            timers[f"Crossing-v0 + {name}"] = Timer(
+                wrap(gym.make("crossing_env/Crossing-v0", scenario=args.scenario))
+            )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # intersection-v0 warns that it is out of date
         peer = Timer(gym.make("intersection-v0"))
@@ -73,8 +79,10 @@ def main() -> None:
             for timer in timers.values():
                 timer.burst(args.burst)
     for name, timer in timers.items():
-        print(f"{name:40s} {timer.rate:9.1f} steps/s ({timer.episodes} episodes)  "
-              f"ratio to intersection-v0: {timer.rate / peer.rate:6.1f}x")
+        print(
+            f"{name:40s} {timer.rate:9.1f} steps/s ({timer.episodes} episodes)  "
+            f"ratio to intersection-v0: {timer.rate / peer.rate:6.1f}x"
+        )
     print(f"{'highway-env intersection-v0':40s} {peer.rate:9.1f} steps/s ({peer.episodes} episodes)")
     print(f"scenario: {args.scenario}; target for bare Crossing-v0: >= 100x")
 

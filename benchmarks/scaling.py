@@ -33,7 +33,7 @@ def crowd_scenario(count: int, seed: int = 0) -> ScenarioConfig:
     )
 
 
-def rate(step, seconds: float) -> float:  # noqa: ANN001
+def rate(step, seconds: float) -> float:
     """Calls per second of `step` over about `seconds` of wall time."""
     step()
     n, start = 0, time.perf_counter()
@@ -84,7 +84,9 @@ def peer(count: int, seconds: float) -> float | None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--seconds", type=float, default=5.0, help="wall time per measurement")
     parser.add_argument("--counts", type=int, nargs="+", default=[10, 50, 200], help="pedestrian counts")
     args = parser.parse_args()

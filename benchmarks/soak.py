@@ -24,7 +24,9 @@ def rss_mib() -> float:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--steps", type=int, default=1_000_000, help="env steps in total")
     parser.add_argument("--scenario", default="busy_zebra", help="scenario name or path")
     parser.add_argument("--seed", type=int, default=0)
@@ -49,11 +51,16 @@ def main() -> None:
             start_rss = rss_mib()
             print(f"after warm-up ({warmup} steps): RSS {start_rss:.1f} MiB", flush=True)
         if step % report_every == 0:
-            print(f"{step:>9} steps  {episodes:>6} episodes  RSS {rss_mib():7.1f} MiB  "
-                  f"{step / (time.perf_counter() - start):7.0f} steps/s", flush=True)
+            print(
+                f"{step:>9} steps  {episodes:>6} episodes  RSS {rss_mib():7.1f} MiB  "
+                f"{step / (time.perf_counter() - start):7.0f} steps/s",
+                flush=True,
+            )
     end_rss = rss_mib()
-    print(f"start RSS {start_rss:.1f} MiB, end RSS {end_rss:.1f} MiB, growth {end_rss - start_rss:+.1f} MiB "
-          f"over {args.steps - warmup} steps")
+    print(
+        f"start RSS {start_rss:.1f} MiB, end RSS {end_rss:.1f} MiB, growth {end_rss - start_rss:+.1f} MiB "
+        f"over {args.steps - warmup} steps"
+    )
 
 
 if __name__ == "__main__":

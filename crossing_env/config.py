@@ -210,7 +210,7 @@ class BehaviourConfig:
     red_light_rate: float = 0.08
     """Probability that a pedestrian facing a red signal crosses anyway when the gap allows."""
     update_force_intensity: bool = False
-    """Apply the QLB-updated social force intensities (seed Case 2) for pedestrians who see others misbehave."""
+    """Use the QLB-updated ped–ped intensities (seed Case 2) for pedestrians who see others misbehave."""
 
 
 @dataclass(frozen=True)
@@ -224,7 +224,7 @@ class SocialForceConfig:
     vehicle_intensity: float = 0.71
     """Intensity of vehicle–pedestrian repulsion (seed paper calibration)."""
     base_strength: float = 25.0
-    """Strength at contact for intensity 1, m/s²: force = intensity × base × exp((R − d)/B) (Helbing 2000: 2000 N / 80 kg)."""
+    """Strength at contact for intensity 1 (m/s²): intensity × base × exp((R − d)/B); 2000 N / 80 kg."""
     ped_range: float = 0.3
     """Range B of pedestrian repulsion in metres."""
     vehicle_range: float = 0.5

@@ -20,7 +20,7 @@ class DecisionContext:
     """What a waiting pedestrian perceives, one entry per waiting pedestrian."""
 
     gap: FloatArray
-    """Time in seconds until the nearest approaching, non-yielding car reaches the pedestrian's path (inf if none)."""
+    """Seconds until the first approaching car reaches the pedestrian's crossing line (inf if none)."""
     critical_gap: FloatArray
     """Each pedestrian's critical gap in seconds."""
     phase: FloatArray

@@ -86,7 +86,9 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
         self._renderer = None
 
     # ------------------------------------------------------------------ Gymnasium API
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[CrossingObs, dict]:
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[CrossingObs, dict]:
         """Start a new episode; `options={"scenario": ...}` switches scenario for this and later episodes."""
         super().reset(seed=seed)
         if options and "scenario" in options:
@@ -116,7 +118,9 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
         world.step(accel)
         gt = world.ground_truth()
         rewards = self._rewards(gt, world.traffic.x[0] - x_before)
-        terminated = bool(gt.collisions) or world.traffic.x[0] >= self.scenario.road.length - END_OF_ROAD_MARGIN
+        terminated = (
+            bool(gt.collisions) or world.traffic.x[0] >= self.scenario.road.length - END_OF_ROAD_MARGIN
+        )
         truncated = (not terminated) and world.time >= self.scenario.duration - 1e-9
         info = {"ground_truth": gt, "rewards": rewards, "time": gt.time}
         if self.render_mode == "human":

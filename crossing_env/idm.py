@@ -35,7 +35,9 @@ def idm_acceleration(
     v0 = np.maximum(desired_speed, 1e-3)
     free = 1.0 - (np.maximum(speed, 0.0) / v0) ** params.delta
     dv = speed - leader_speed
-    s_star = params.min_gap + np.maximum(0.0, speed * params.time_headway + speed * dv / (2.0 * np.sqrt(a * b)))
+    s_star = params.min_gap + np.maximum(
+        0.0, speed * params.time_headway + speed * dv / (2.0 * np.sqrt(a * b))
+    )
     gap = np.maximum(gap, 1e-2)
     with np.errstate(invalid="ignore"):
         interaction = np.where(np.isfinite(gap), (s_star / gap) ** 2, 0.0)

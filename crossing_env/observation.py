@@ -17,8 +17,14 @@ from gymnasium import spaces
 from crossing_env.config import ObservationConfig, ScenarioConfig
 from crossing_env.types import CrossingObs, FloatArray
 
-EGO_FEATURES = ("speed", "acceleration", "distance_to_stop_line", "distance_past_crossing", "car_green",
-                "zebra")
+EGO_FEATURES = (
+    "speed",
+    "acceleration",
+    "distance_to_stop_line",
+    "distance_past_crossing",
+    "car_green",
+    "zebra",
+)
 PEDESTRIAN_FEATURES = ("presence", "dx", "dy", "vx", "vy", "on_crossing", "waiting", "on_road")
 VEHICLE_FEATURES = ("presence", "dx", "dy", "vx", "vy", "length", "width")
 POSITION_BOUND = 500.0
@@ -38,12 +44,14 @@ def observation_space(config: ObservationConfig) -> spaces.Dict:
     ped_high = np.tile(np.array([1, pb, pb, vb, vb, 1, 1, 1], dtype=np.float32), (k, 1))
     veh_low = np.tile(np.array([0, -pb, -pb, -vb, -vb, 0, 0], dtype=np.float32), (m, 1))
     veh_high = np.tile(np.array([1, pb, pb, vb, vb, 20, 5], dtype=np.float32), (m, 1))
-    return spaces.Dict({
-        "ego": spaces.Box(ego_low, ego_high, dtype=np.float32),
-        "pedestrians": spaces.Box(ped_low, ped_high, dtype=np.float32),
-        "pedestrian_history": spaces.Box(-pb, pb, shape=(k, h, 2), dtype=np.float32),
-        "vehicles": spaces.Box(veh_low, veh_high, dtype=np.float32),
-    })
+    return spaces.Dict(
+        {
+            "ego": spaces.Box(ego_low, ego_high, dtype=np.float32),
+            "pedestrians": spaces.Box(ped_low, ped_high, dtype=np.float32),
+            "pedestrian_history": spaces.Box(-pb, pb, shape=(k, h, 2), dtype=np.float32),
+            "vehicles": spaces.Box(veh_low, veh_high, dtype=np.float32),
+        }
+    )
 
 
 def _segment_hits_boxes(start: FloatArray, ends: FloatArray, boxes: FloatArray) -> np.ndarray:
@@ -80,17 +88,24 @@ class ObservationBuilder:
         self._crossing_end = crossing.position + crossing.width / 2
         self._zebra = 1.0 if crossing.kind == "zebra" else 0.0
 
-    def build(self, world) -> CrossingObs:  # noqa: ANN001 - World, avoided for an import cycle
+    def build(self, world) -> CrossingObs:
         """Observation of `world` (a `crossing_env.world.World`); fresh float32 arrays on every call."""
         cfg = self.config
         tr, peds, geo = world.traffic, world.pedestrians, world.geometry
         ex, ey = tr.x[0], tr.y[0]
         half_len = tr.length[0] / 2
         car_green = 1.0 if geo.signal is None or not geo.signal.pedestrian_green(world.time) else 0.0
-        ego_obs = np.array([
-            tr.speed[0], tr.acceleration[0], self._stop_x - (ex + half_len), ex - half_len - self._crossing_end,
-            car_green, self._zebra,
-        ], dtype=np.float32)
+        ego_obs = np.array(
+            [
+                tr.speed[0],
+                tr.acceleration[0],
+                self._stop_x - (ex + half_len),
+                ex - half_len - self._crossing_end,
+                car_green,
+                self._zebra,
+            ],
+            dtype=np.float32,
+        )
 
         # Pedestrians: visible ones sorted by relevance (ahead of the ego and close to its path first).
         act = np.flatnonzero(peds.state)
@@ -137,7 +152,9 @@ class ObservationBuilder:
             dx, dy = tr.x[bg] - ex, tr.y[bg] - ey
             dist = np.sqrt(dx * dx + dy * dy)
             keep = dist <= cfg.perception_range
-            order = np.argsort(np.where(keep, dist, np.inf), kind="stable")[: min(cfg.max_vehicles, int(keep.sum()))]
+            order = np.argsort(np.where(keep, dist, np.inf), kind="stable")[
+                : min(cfg.max_vehicles, int(keep.sum()))
+            ]
             vrows = bg[order]
             m = vrows.size
             veh[:m, 0] = 1.0

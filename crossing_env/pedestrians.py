@@ -175,7 +175,9 @@ class PedestrianPopulation:
             speed *= 0.8  # phone users walk about 20% slower
         self.base_speed[i] = speed
         self.desired_speed[i] = speed
-        self.critical_gap[i] = spawn.critical_gap if spawn.critical_gap is not None else self._draw_critical_gap()
+        self.critical_gap[i] = (
+            spawn.critical_gap if spawn.critical_gap is not None else self._draw_critical_gap()
+        )
         if self.distracted[i]:
             self.critical_gap[i] *= 0.7  # a cursory glance: shorter gaps get accepted
         self.phase[i] = spawn.phase if spawn.phase is not None else self._draw_phase()
@@ -193,7 +195,9 @@ class PedestrianPopulation:
         self.accepted_gap[i] = np.nan
         if spawn.crossing_x is not None:
             cx = spawn.crossing_x
-            self.jaywalker[i] = not (geo.has_crossing and geo.crossing_rect.x_min <= cx <= geo.crossing_rect.x_max)
+            self.jaywalker[i] = not (
+                geo.has_crossing and geo.crossing_rect.x_min <= cx <= geo.crossing_rect.x_max
+            )
         elif geo.has_crossing and spawn.crosses:
             half = max(0.0, self.scenario.crossing.width / 2 - 0.6)
             cx = self.scenario.crossing.position + self.rng.uniform(-half, half)
@@ -242,8 +246,11 @@ class PedestrianPopulation:
             first = self.spawn(spawn)
             if companion and first is not None:
                 mate = PedestrianSpawn(
-                    x=x - 0.8 * np.sign(offset), side=side, crosses=crosses,
-                    crossing_x=self.crossing_x[first] + 0.6, group=group,
+                    x=x - 0.8 * np.sign(offset),
+                    side=side,
+                    crosses=crosses,
+                    crossing_x=self.crossing_x[first] + 0.6,
+                    group=group,
                 )
                 self.spawn(mate)
 
@@ -353,11 +360,14 @@ class PedestrianPopulation:
         crossing = np.flatnonzero(before == CROSSING)
         if crossing.size:
             road_w = self.geometry.kerb_north - self.geometry.kerb_south
-            progress = np.where(
-                self.side[crossing] > 0,
-                self.position[crossing, 1] - self.geometry.kerb_south,
-                self.geometry.kerb_north - self.position[crossing, 1],
-            ) / road_w
+            progress = (
+                np.where(
+                    self.side[crossing] > 0,
+                    self.position[crossing, 1] - self.geometry.kerb_south,
+                    self.geometry.kerb_north - self.position[crossing, 1],
+                )
+                / road_w
+            )
             for k in np.flatnonzero(progress >= self.hesitate_at[crossing]):
                 i = int(crossing[k])
                 self.hesitate_at[i] = np.inf
@@ -382,7 +392,7 @@ class PedestrianPopulation:
         leaving = (before == LEAVING) & arrived
         x = self.position[:, 0]
         off_map = (x < -5.0) | (x > self.scenario.road.length + 5.0)
-        gone = (leaving | (off_map & (st != INACTIVE)))
+        gone = leaving | (off_map & (st != INACTIVE))
         if gone.any():
             st[gone] = INACTIVE
             self.ids[gone] = -1
@@ -435,8 +445,15 @@ class PedestrianPopulation:
         stay &= ~((st == APPROACHING) & self._on_road(act))
         sf = self.config.social_force
         acc = social_force_acceleration(
-            self.position[act], self.velocity[act], self.waypoint[act], v0, self.radius[act], stay,
-            cars.boxes, (self.geometry.kerb_south, self.geometry.kerb_north), sf,
+            self.position[act],
+            self.velocity[act],
+            self.waypoint[act],
+            v0,
+            self.radius[act],
+            stay,
+            cars.boxes,
+            (self.geometry.kerb_south, self.geometry.kerb_north),
+            sf,
             ped_intensity=self.force_intensity[act],
         )
         vel = self.velocity[act] + acc * self.dt

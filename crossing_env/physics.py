@@ -51,7 +51,9 @@ def _on_car_pedestrian(arbiter: pymunk.Arbiter, space: pymunk.Space, data: list[
 class PhysicsWorld:
     """A pymunk space holding pooled vehicle and pedestrian bodies."""
 
-    def __init__(self, vehicle_capacity: int, pedestrian_capacity: int, vehicle_size: tuple[float, float]) -> None:
+    def __init__(
+        self, vehicle_capacity: int, pedestrian_capacity: int, vehicle_size: tuple[float, float]
+    ) -> None:
         self.space = pymunk.Space()
         self.space.iterations = 10
         self.num_vehicles = vehicle_capacity
@@ -60,7 +62,9 @@ class PhysicsWorld:
         self.vehicle_shapes: list[pymunk.Poly] = []
         self.pedestrian_shapes: list[pymunk.Circle] = []
         length, width = vehicle_size
-        self._half_diagonal = 0.5 * math.hypot(length, width) + 0.5  # car half-diagonal plus a pedestrian radius
+        self._half_diagonal = (
+            0.5 * math.hypot(length, width) + 0.5
+        )  # car half-diagonal plus a pedestrian radius
         for i in range(vehicle_capacity):
             body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
             body.position = (_PARK_X - 20.0 * i, -1000.0)
@@ -88,8 +92,11 @@ class PhysicsWorld:
         self._vehicle_on = np.zeros(vehicle_capacity, dtype=bool)
         self._pedestrian_on = np.zeros(pedestrian_capacity, dtype=bool)
         self._parking = np.stack(
-            [_PARK_X - 20.0 * np.arange(vehicle_capacity + pedestrian_capacity),
-             np.r_[np.full(vehicle_capacity, -1000.0), np.full(pedestrian_capacity, 1000.0)]], axis=1
+            [
+                _PARK_X - 20.0 * np.arange(vehicle_capacity + pedestrian_capacity),
+                np.r_[np.full(vehicle_capacity, -1000.0), np.full(pedestrian_capacity, 1000.0)],
+            ],
+            axis=1,
         )
 
     def set_vehicle_geometry(self, slot: int, length: float, width: float) -> None:
@@ -112,7 +119,9 @@ class PhysicsWorld:
                 shapes[i].filter = _ALL if new[i] else _NONE
             old[:] = new
 
-    def _contact_possible(self, state: FloatArray, vehicles_on: BoolArray, pedestrians_on: BoolArray, dt: float) -> bool:
+    def _contact_possible(
+        self, state: FloatArray, vehicles_on: BoolArray, pedestrians_on: BoolArray, dt: float
+    ) -> bool:
         """Whether any car could reach any pedestrian within this step (else one substep is exact enough).
 
         Conservative: each car's box is grown by the distance both bodies can travel in `dt` plus 1 m.

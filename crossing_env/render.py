@@ -50,12 +50,12 @@ class TopDownRenderer:
     def _to_px(self, x: float, y: float, cx: float, cy: float) -> tuple[int, int]:
         return (int(self.width / 2 + (x - cx) * self.scale), int(self.height / 2 - (y - cy) * self.scale))
 
-    def _rect(self, x0: float, y0: float, x1: float, y1: float, cx: float, cy: float):  # noqa: ANN202
+    def _rect(self, x0: float, y0: float, x1: float, y1: float, cx: float, cy: float):
         a = self._to_px(x0, y1, cx, cy)
         b = self._to_px(x1, y0, cx, cy)
         return self.pygame.Rect(a[0], a[1], max(1, b[0] - a[0]), max(1, b[1] - a[1]))
 
-    def draw(self, world) -> np.ndarray:  # noqa: ANN001 - World (import cycle)
+    def draw(self, world) -> np.ndarray:
         """Render one frame and return it as uint8 (H, W, 3)."""
         pg, s = self.pygame, self.surface
         geo, tr, peds = world.geometry, world.traffic, world.pedestrians
@@ -78,8 +78,13 @@ class TopDownRenderer:
                     pg.draw.rect(s, COLOURS["stripe"], self._rect(r.x_min, y0, r.x_max, y0 + 0.5, cx, cy))
             else:
                 for x in (r.x_min, r.x_max):
-                    pg.draw.line(s, COLOURS["stripe"], self._to_px(x, 0, cx, cy),
-                                 self._to_px(x, road.road_width, cx, cy), 3)
+                    pg.draw.line(
+                        s,
+                        COLOURS["stripe"],
+                        self._to_px(x, 0, cx, cy),
+                        self._to_px(x, road.road_width, cx, cy),
+                        3,
+                    )
             if geo.signal is not None:
                 colour = COLOURS["signal_green" if geo.signal.pedestrian_green(world.time) else "signal_red"]
                 pg.draw.circle(s, colour, self._to_px(r.x_min - 1.0, -1.0, cx, cy), 6)

@@ -66,8 +66,9 @@ class RoadGeometry:
             start, end = ((0.0, y), (road.length, y)) if forward else ((road.length, y), (0.0, y))
             lower = LineType.CONTINUOUS_LINE if i in (0, n_fwd) else LineType.STRIPED
             upper = LineType.CONTINUOUS_LINE if i in (road.num_lanes - 1, n_fwd - 1) else LineType.NONE
-            lane = StraightLane(start, end, width=width, line_types=(lower, upper),
-                                speed_limit=road.speed_limit)
+            lane = StraightLane(
+                start, end, width=width, line_types=(lower, upper), speed_limit=road.speed_limit
+            )
             self.lanes.append(lane)
             self.network.add_lane("west" if forward else "east", "east" if forward else "west", lane)
         #: (L,) lane centre y coordinates and (L,) travel direction (+1 towards +x, −1 towards −x).
@@ -83,7 +84,7 @@ class RoadGeometry:
         self.signal = PedestrianSignal(crossing.signal) if crossing.kind == "signalised" else None
 
     def stop_line_x(self, direction: float) -> float:
-        """x of the stop line for traffic moving in `direction` (+1 or −1)."""
+        """X of the stop line for traffic moving in `direction` (+1 or −1)."""
         c = self.crossing
         if direction > 0:
             return c.position - c.width / 2 - c.stop_line_offset

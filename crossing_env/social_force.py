@@ -21,7 +21,6 @@ import numpy as np
 from crossing_env.config import SocialForceConfig
 from crossing_env.types import BoolArray, FloatArray
 
-
 _MIN_EXPONENT = -30.0
 """Exponents are clipped here: exp(−30) ≈ 1e-13 is negligible, and it keeps far-apart pairs out of the
 subnormal range, where floating-point arithmetic is orders of magnitude slower."""

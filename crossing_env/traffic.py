@@ -58,7 +58,7 @@ class Traffic:
 
     # ------------------------------------------------------------------ geometry helpers
     def _place_laterally(self, i: int) -> None:
-        """Centre y and direction of slot i; parked cars stand in a parking strip just outside the south kerb."""
+        """Centre y and direction of slot i; parked cars stand in a strip just outside the south kerb."""
         if self.parked[i]:
             self.y[i] = self.geometry.kerb_south - self.width[i] / 2 - 0.1
         else:
@@ -106,7 +106,9 @@ class Traffic:
         if desired is None:
             desired = max(0.5 * limit, limit + self.rng.normal(0.0, self.config.desired_speed_std))
         self.desired_speed[i] = desired
-        self.yields[i] = spawn.yields if spawn.yields is not None else self.rng.random() < self.config.yield_probability
+        self.yields[i] = (
+            spawn.yields if spawn.yields is not None else self.rng.random() < self.config.yield_probability
+        )
         return i
 
     def _arrivals(self, dt: float) -> None:
@@ -159,11 +161,17 @@ class Traffic:
         lead_speed = np.where(np.isfinite(gap), self.speed[lead], 0.0)
         # Pedestrians on the carriageway in the car's lane ahead.
         if ped_positions.shape[0]:
-            lane_idx = np.minimum(np.maximum((ped_positions[:, 1] / self.geometry.road.lane_width).astype(np.int64), 0),
-                                  self.geometry.road.num_lanes - 1)
+            lane_idx = np.minimum(
+                np.maximum((ped_positions[:, 1] / self.geometry.road.lane_width).astype(np.int64), 0),
+                self.geometry.road.num_lanes - 1,
+            )
             ped_s = ped_positions[None, :, 0] * d[:, None]
             dist = ped_s - s[:, None] - half[:, None] - 0.5
-            hit = (lane_idx[None, :] == self.lane[:, None]) & (dist > -half[:, None]) & (dist < PEDESTRIAN_LOOKAHEAD)
+            hit = (
+                (lane_idx[None, :] == self.lane[:, None])
+                & (dist > -half[:, None])
+                & (dist < PEDESTRIAN_LOOKAHEAD)
+            )
             ped_gap = np.where(hit, np.maximum(dist, 0.01), np.inf).min(axis=1)
             closer = ped_gap < gap
             gap = np.where(closer, ped_gap, gap)
@@ -177,7 +185,9 @@ class Traffic:
             must = np.zeros(n, dtype=bool)
             if cars_must_stop:
                 must |= True
-            if self.scenario.crossing.kind == "zebra" and (ped_waiting_x.shape[0] or ped_on_crossing_x.shape[0]):
+            if self.scenario.crossing.kind == "zebra" and (
+                ped_waiting_x.shape[0] or ped_on_crossing_x.shape[0]
+            ):
                 must |= self.yields
             stop = must & can_stop & (to_line > -1.0)
             line_gap = np.maximum(to_line, 0.01)
@@ -188,7 +198,7 @@ class Traffic:
         return np.where(act & ~self.parked, acc, 0.0)
 
     def advance(self, acceleration: FloatArray, dt: float, ego_max_speed: float) -> FloatArray:
-        """Integrate speeds and positions (semi-implicit Euler, no reversing); returns per-slot displacement."""
+        """Integrate speeds and positions (trapezoidal, no reversing); returns the per-slot displacement."""
         speed = np.maximum(0.0, self.speed + acceleration * dt)
         speed[0] = min(speed[0], ego_max_speed)
         speed[self.parked | ~self.active] = 0.0

@@ -45,7 +45,11 @@ class World:
         self.geometry = RoadGeometry(scenario.road, scenario.crossing)
         self.traffic = Traffic(scenario, self.geometry, rng)
         self.pedestrians = PedestrianPopulation(
-            scenario, self.geometry, decision_model or make_decision_model(scenario), rng, self.dt,
+            scenario,
+            self.geometry,
+            decision_model or make_decision_model(scenario),
+            rng,
+            self.dt,
             history_length=self.config.observation.history_length,
         )
         t = scenario.traffic
@@ -58,7 +62,7 @@ class World:
         self._refresh_masks()
 
     def _refresh_masks(self) -> None:
-        """Per-pedestrian geometric masks, computed once per step and shared by traffic, observation and truth."""
+        """Per-pedestrian geometric masks, computed once per step and shared by traffic, observation, truth."""
         peds = self.pedestrians
         self.ped_on_road = peds.on_road()
         """(n,) active and on the carriageway."""
@@ -72,8 +76,12 @@ class World:
         tr = self.traffic
         moving = tr.active & ~tr.parked
         return CarSnapshot(
-            x=tr.x[moving], lane=tr.lane[moving], direction=tr.direction[moving], speed=tr.speed[moving],
-            half_length=tr.length[moving] / 2, boxes=tr.boxes(),
+            x=tr.x[moving],
+            lane=tr.lane[moving],
+            direction=tr.direction[moving],
+            speed=tr.speed[moving],
+            half_length=tr.length[moving] / 2,
+            boxes=tr.boxes(),
         )
 
     def step(self, ego_acceleration: float) -> None:
@@ -89,7 +97,9 @@ class World:
         near_zebra = np.abs(peds.crossing_x - self.scenario.crossing.position) < self.scenario.crossing.width
         waiting = (peds.state == WAITING) & near_zebra & act & ~peds.jaywalker
         acc = tr.background_accelerations(
-            peds.position[self.ped_on_road & act], peds.position[waiting], peds.position[self.ped_on_crossing & act],
+            peds.position[self.ped_on_road & act],
+            peds.position[waiting],
+            peds.position[self.ped_on_crossing & act],
             green is True,
         )
         acc[0] = ego_acceleration
@@ -99,7 +109,13 @@ class World:
         vel = (tr.positions() - start_positions) / dt
         self._resize_new_pedestrians()
         pos, pvel, contacts = self.physics.step(
-            start_positions, vel, tr.active, peds.position, peds.velocity, act, dt,
+            start_positions,
+            vel,
+            tr.active,
+            peds.position,
+            peds.velocity,
+            act,
+            dt,
             self.config.max_substep_displacement,
         )
         peds.position = np.where(act[:, None], pos, peds.position)
@@ -125,11 +141,16 @@ class World:
             if c.vehicle_slot != 0:
                 self.background_contacts += 1
                 continue
-            self.collisions.append(CollisionEvent(
-                time=round(self.time, 9), kind="pedestrian",
-                other_id=int(self.pedestrians.ids[c.pedestrian_slot]), position=c.point,
-                relative_speed=c.relative_speed, compliant=bool(legal[c.pedestrian_slot]),
-            ))
+            self.collisions.append(
+                CollisionEvent(
+                    time=round(self.time, 9),
+                    kind="pedestrian",
+                    other_id=int(self.pedestrians.ids[c.pedestrian_slot]),
+                    position=c.point,
+                    relative_speed=c.relative_speed,
+                    compliant=bool(legal[c.pedestrian_slot]),
+                )
+            )
 
     def _check_ego_vehicle_overlap(self) -> None:
         """Kinematic bodies never collide in pymunk, so ego–car contact is an overlap test along the lane.
@@ -147,11 +168,16 @@ class World:
             return
         for i in np.flatnonzero(new):
             rel = abs(tr.speed[0] - tr.speed[i] * tr.direction[i])
-            self.collisions.append(CollisionEvent(
-                time=round(self.time, 9), kind="vehicle", other_id=int(tr.ids[i]),
-                position=(float((tr.x[0] + tr.x[i]) / 2), float(tr.y[0])),
-                relative_speed=float(rel), compliant=True,
-            ))
+            self.collisions.append(
+                CollisionEvent(
+                    time=round(self.time, 9),
+                    kind="vehicle",
+                    other_id=int(tr.ids[i]),
+                    position=(float((tr.x[0] + tr.x[i]) / 2), float(tr.y[0])),
+                    relative_speed=float(rel),
+                    compliant=True,
+                )
+            )
 
     # ------------------------------------------------------------------ views
     @property
@@ -189,6 +215,9 @@ class World:
             signal_pedestrian_green=self.geometry.pedestrian_green(self.time),
             collisions=tuple(self.collisions),
             events=tuple(peds.events),
-            extras={"phase": peds.phase[act].copy(), "distracted": peds.distracted[act].copy(),
-                    "jaywalker": peds.jaywalker[act].copy()},
+            extras={
+                "phase": peds.phase[act].copy(),
+                "distracted": peds.distracted[act].copy(),
+                "jaywalker": peds.jaywalker[act].copy(),
+            },
         )

@@ -24,7 +24,7 @@ def test_make_vec_runs_four_envs():
     obs, _ = envs.reset(seed=3)
     assert obs["pedestrians"].shape == (4, 16, 8)
     for _ in range(30):
-        obs, reward, term, trunc, _ = envs.step(envs.action_space.sample())
+        obs, reward, _, _, _ = envs.step(envs.action_space.sample())
         assert reward.shape == (4,)
     envs.close()
 
@@ -47,7 +47,7 @@ def _equal(a, b) -> bool:
     if isinstance(a, dict):
         return a.keys() == b.keys() and all(_equal(a[k], b[k]) for k in a)
     if isinstance(a, tuple):
-        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b))
+        return len(a) == len(b) and all(_equal(x, y) for x, y in zip(a, b, strict=True))
     if isinstance(a, np.ndarray):
         return np.array_equal(a, b)
     return a == b
@@ -56,8 +56,8 @@ def _equal(a, b) -> bool:
 def test_same_seed_gives_identical_rollouts_and_different_seed_differs():
     a, b, c = _rollout(7), _rollout(7), _rollout(8)
     assert len(a) == len(b)
-    assert all(_equal(x, y) for x, y in zip(a, b))
-    assert not all(_equal(x, y) for x, y in zip(a, c))
+    assert all(_equal(x, y) for x, y in zip(a, b, strict=True))
+    assert not all(_equal(x, y) for x, y in zip(a, c, strict=True))
 
 
 @pytest.mark.parametrize("scenario_seed", range(3))
@@ -132,7 +132,7 @@ def test_collision_terminates_with_penalty():
     env = CrossingEnv(scenario=scenario)
     env.reset(seed=0)
     for _ in range(200):
-        _, reward, term, _, info = env.step(np.array([0.0], dtype=np.float32))
+        _, _, term, _, info = env.step(np.array([0.0], dtype=np.float32))
         if term:
             break
     gt = info["ground_truth"]

@@ -16,7 +16,7 @@ from agents.evaluate import EpisodeTask, episode_seed, make_tasks, run_tasks, wo
 REPO = Path(__file__).resolve().parents[1]
 SMALL = [
     "--scenarios",
-    "zebra_case1,occluded_parked_car",
+    "occluded_parked_car,midblock_jaywalker",
     "--policies",
     "yielding,constant_speed",
     "--episodes",

@@ -27,21 +27,29 @@ def scenarios(draw) -> ScenarioConfig:
     rate = st.floats(0.0, 1.0)
     behaviour = BehaviourConfig(
         decision_model=draw(st.sampled_from(["gap", "qlb"])),
-        distraction_rate=draw(rate), running_rate=draw(rate), hesitation_rate=draw(rate),
-        turn_back_rate=draw(rate), jaywalk_rate=draw(rate), red_light_rate=draw(rate),
+        distraction_rate=draw(rate),
+        running_rate=draw(rate),
+        hesitation_rate=draw(rate),
+        turn_back_rate=draw(rate),
+        jaywalk_rate=draw(rate),
+        red_light_rate=draw(rate),
         phase_std=draw(st.floats(0.0, 1.5)),
     )
     return ScenarioConfig(
-        road=RoadConfig(num_lanes=lanes, two_way=two_way, length=length,
-                        lane_width=draw(st.floats(2.8, 4.0))),
-        crossing=CrosswalkConfig(kind=kind, position=draw(st.floats(60.0, length - 40.0)),
-                                 width=draw(st.floats(2.5, 6.0))),
+        road=RoadConfig(
+            num_lanes=lanes, two_way=two_way, length=length, lane_width=draw(st.floats(2.8, 4.0))
+        ),
+        crossing=CrosswalkConfig(
+            kind=kind, position=draw(st.floats(60.0, length - 40.0)), width=draw(st.floats(2.5, 6.0))
+        ),
         ego=EgoConfig(x=draw(st.floats(5.0, 40.0)), speed=draw(st.floats(0.0, 18.0))),
-        traffic=TrafficConfig(flow_per_lane=draw(st.floats(0.0, 1500.0)),
-                              yield_probability=draw(rate)),
-        pedestrians=PedestrianConfig(spawn_rate=draw(st.floats(0.0, 60.0)),
-                                     cross_fraction=draw(rate), group_probability=draw(rate),
-                                     behaviour=behaviour),
+        traffic=TrafficConfig(flow_per_lane=draw(st.floats(0.0, 1500.0)), yield_probability=draw(rate)),
+        pedestrians=PedestrianConfig(
+            spawn_rate=draw(st.floats(0.0, 60.0)),
+            cross_fraction=draw(rate),
+            group_probability=draw(rate),
+            behaviour=behaviour,
+        ),
         duration=20.0,
         night=draw(st.booleans()),
     )
@@ -74,6 +82,8 @@ def test_random_scenarios_and_actions_keep_invariants(scenario, seed, data):
         hit_ids |= {c.other_id for c in gt.collisions if c.kind == "pedestrian"}
         overlapping = _ego_pedestrian_overlap(env.world)
         for slot in overlapping:
-            assert int(env.world.pedestrians.ids[slot]) in hit_ids, "pedestrian overlaps the ego without a collision"
+            assert int(env.world.pedestrians.ids[slot]) in hit_ids, (
+                "pedestrian overlaps the ego without a collision"
+            )
         if terminated or truncated:
             break

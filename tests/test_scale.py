@@ -36,8 +36,14 @@ print(h.hexdigest())
 
 def _digest_in_subprocess(scenario: str, seed: int, steps: int, hash_seed: str) -> str:
     env = dict(os.environ, PYTHONHASHSEED=hash_seed)
-    out = subprocess.run([sys.executable, "-c", ROLLOUT, scenario, str(seed), str(steps)],
-                         capture_output=True, text=True, env=env, check=True, timeout=300)
+    out = subprocess.run(
+        [sys.executable, "-c", ROLLOUT, scenario, str(seed), str(steps)],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=True,
+        timeout=300,
+    )
     return out.stdout.strip().splitlines()[-1]
 
 
@@ -51,7 +57,7 @@ def _digest_here(scenario: str, seed: int, steps: int) -> str:
 
         buf = io.StringIO()
         with contextlib.redirect_stdout(buf):
-            exec(compile(ROLLOUT, "<rollout>", "exec"), namespace)  # noqa: S102 - our own test code
+            exec(compile(ROLLOUT, "<rollout>", "exec"), namespace)
     finally:
         sys.argv = argv
     return buf.getvalue().strip()
@@ -80,7 +86,7 @@ def _vector_rollout(mode: str, steps: int = 60) -> list[np.ndarray]:
 @pytest.mark.slow
 def test_sync_and_async_vector_envs_agree():
     sync, asyn = _vector_rollout("sync"), _vector_rollout("async")
-    assert all(np.array_equal(a, b) for a, b in zip(sync, asyn))
+    assert all(np.array_equal(a, b) for a, b in zip(sync, asyn, strict=True))
     assert any(a[:, :, 0].sum() > 0 for a in sync)  # pedestrians were observed at all
 
 
@@ -91,5 +97,7 @@ def test_vector_env_matches_single_envs():
         single = gym.make(ENV_ID)
         o, _ = single.reset(seed=seed)
         assert np.array_equal(o["ego"], obs["ego"][i])
-        assert hashlib.sha256(o["pedestrians"].tobytes()).digest() == hashlib.sha256(
-            obs["pedestrians"][i].tobytes()).digest()
+        assert (
+            hashlib.sha256(o["pedestrians"].tobytes()).digest()
+            == hashlib.sha256(obs["pedestrians"][i].tobytes()).digest()
+        )

@@ -24,7 +24,9 @@ def test_fast_car_hits_pedestrian_without_tunnelling(speed):
     contacts = []
     for _ in range(40):
         car_vel = np.array([[speed, 0.0]])
-        ped_pos, _, new = world.step(car, car_vel, np.array([True]), ped, np.zeros((1, 2)), np.array([True]), dt, 0.5)
+        ped_pos, _, new = world.step(
+            car, car_vel, np.array([True]), ped, np.zeros((1, 2)), np.array([True]), dt, 0.5
+        )
         contacts += new
         car = car + car_vel * dt
         ped = ped_pos
@@ -38,8 +40,14 @@ def test_too_large_substeps_would_tunnel():
     """Control for the test above: without substepping (huge max displacement) the car passes through."""
     world = PhysicsWorld(vehicle_capacity=1, pedestrian_capacity=1, vehicle_size=(4.5, 1.8))
     _, _, contacts = world.step(
-        np.array([[0.0, 0.0]]), np.array([[200.0, 0.0]]), np.array([True]),
-        np.array([[50.0, 0.0]]), np.zeros((1, 2)), np.array([True]), 0.5, 1000.0,
+        np.array([[0.0, 0.0]]),
+        np.array([[200.0, 0.0]]),
+        np.array([True]),
+        np.array([[50.0, 0.0]]),
+        np.zeros((1, 2)),
+        np.array([True]),
+        0.5,
+        1000.0,
     )
     assert contacts == []
 
@@ -47,20 +55,38 @@ def test_too_large_substeps_would_tunnel():
 def test_inactive_slots_do_not_collide():
     world = PhysicsWorld(vehicle_capacity=1, pedestrian_capacity=1, vehicle_size=(4.5, 1.8))
     _, _, contacts = world.step(
-        np.array([[0.0, 0.0]]), np.array([[10.0, 0.0]]), np.array([True]),
-        np.array([[1.0, 0.0]]), np.zeros((1, 2)), np.array([False]), 0.1, 0.5,
+        np.array([[0.0, 0.0]]),
+        np.array([[10.0, 0.0]]),
+        np.array([True]),
+        np.array([[1.0, 0.0]]),
+        np.zeros((1, 2)),
+        np.array([False]),
+        0.1,
+        0.5,
     )
     assert contacts == []
 
 
-def _walk(positions, goals, speeds, steps, dt=0.1, params=SocialForceConfig()):
+DEFAULT_SF = SocialForceConfig()
+
+
+def _walk(positions, goals, speeds, steps, dt=0.1, params=DEFAULT_SF):
     positions, velocities = positions.astype(float).copy(), np.zeros_like(positions, dtype=float)
     radii = np.full(len(positions), 0.3)
     min_dist = np.inf
     history = []
     for _ in range(steps):
-        acc = social_force_acceleration(positions, velocities, goals, speeds, radii,
-                                        np.zeros(len(positions), bool), NO_BOXES, FAR_KERBS, params)
+        acc = social_force_acceleration(
+            positions,
+            velocities,
+            goals,
+            speeds,
+            radii,
+            np.zeros(len(positions), bool),
+            NO_BOXES,
+            FAR_KERBS,
+            params,
+        )
         velocities = limit_speed(velocities + acc * dt, speeds * params.max_speed_factor)
         positions = positions + velocities * dt
         history.append((positions.copy(), velocities.copy()))
@@ -90,8 +116,17 @@ def test_two_pedestrians_walking_head_on_do_not_overlap():
 def test_vehicle_repulsion_pushes_pedestrian_away_from_car():
     box = np.array([[-2.25, -0.9, 2.25, 0.9]])
     pos = np.array([[0.0, 1.5]])
-    acc = social_force_acceleration(pos, np.zeros((1, 2)), pos.copy(), np.array([0.0]), np.array([0.3]),
-                                    np.array([False]), box, FAR_KERBS, SocialForceConfig())
+    acc = social_force_acceleration(
+        pos,
+        np.zeros((1, 2)),
+        pos.copy(),
+        np.array([0.0]),
+        np.array([0.3]),
+        np.array([False]),
+        box,
+        FAR_KERBS,
+        SocialForceConfig(),
+    )
     assert acc[0, 1] > 0 and abs(acc[0, 0]) < 1e-9
 
 
@@ -100,8 +135,17 @@ def test_kerb_force_keeps_non_crossing_pedestrian_on_sidewalk():
     pos, vel = np.array([[0.0, -1.0]]), np.zeros((1, 2))
     params = SocialForceConfig()
     for _ in range(200):
-        acc = social_force_acceleration(pos, vel, np.array([[0.0, 3.0]]), np.array([1.3]), np.array([0.3]),
-                                        np.array([True]), NO_BOXES, (0.0, 7.0), params)
+        acc = social_force_acceleration(
+            pos,
+            vel,
+            np.array([[0.0, 3.0]]),
+            np.array([1.3]),
+            np.array([0.3]),
+            np.array([True]),
+            NO_BOXES,
+            (0.0, 7.0),
+            params,
+        )
         vel = limit_speed(vel + acc * 0.1, np.array([1.7]))
         pos = pos + vel * 0.1
     assert pos[0, 1] < 0.0
@@ -129,8 +173,9 @@ def test_idm_follower_keeps_safe_gap_behind_braking_leader():
         lead_a = -4.0 if 20 <= step < 55 else 0.0  # the leader brakes hard to a stop
         lead_v = max(0.0, lead_v + lead_a * 0.1)
         lead_x += lead_v * 0.1
-        a = idm_acceleration(np.array([v]), np.array([14.0]), np.array([lead_x - x - 4.5]),
-                             np.array([lead_v]), p)[0]
+        a = idm_acceleration(
+            np.array([v]), np.array([14.0]), np.array([lead_x - x - 4.5]), np.array([lead_v]), p
+        )[0]
         v = max(0.0, v + a * 0.1)
         x += v * 0.1
         min_gap = min(min_gap, lead_x - x - 4.5)
