@@ -8,8 +8,8 @@ folder (default ``./crossing-eval-results``):
   episode's metrics (`crossing_env.metrics.EpisodeResult.as_dict`);
 - ``episodes.csv`` (one row per episode) and ``summary.csv`` (one row per policy and "overall");
 - ``safety_vs_efficiency.png`` and ``min_ttc.png`` (matplotlib, Agg backend);
-- ``worst/*.json``: episode logs of the worst episodes (collisions first, then lowest min TTC) that
-  ``crossing-replay`` re-runs.
+- ``worst/*.json``: episode logs of the worst episodes (collisions first, then lowest min TTC; the five
+  worst overall plus the worst of every other policy) that ``crossing-replay episode`` re-runs.
 
 Determinism: the seed of an episode depends only on (``--seed``, scenario name, episode index), via
 `numpy.random.SeedSequence`, so every policy meets the same situations (a paired comparison; the policy
@@ -253,6 +253,10 @@ def _run_ray(
     if not ray.is_initialized():
         kwargs: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False}
         if address in (None, "", "local"):
+            # A fresh instance we start ourselves: every Ray process inherits these, so token auth and
+            # usage stats stay off consistently (see docs/scale-and-rl.md); users may override them.
+            os.environ.setdefault("RAY_AUTH_MODE", "disabled")
+            os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
             kwargs.update(address="local", num_cpus=max(1, workers), object_store_memory=100 * 2**20)
         else:
             kwargs["address"] = address
@@ -481,7 +485,11 @@ def _save_fig(fig: Any, path: Path) -> None:
 
 
 def worst_records(records: Sequence[EpisodeRecord], n: int = WORST_EPISODES) -> list[EpisodeRecord]:
-    """Collisions first (highest impact speed first), then the lowest min TTC; ties by key."""
+    """The `n` worst episodes overall, then the worst of each policy not yet included.
+
+    Ranking: collisions first (highest impact speed first), then the lowest min TTC; ties by key.
+    Episodes with neither a collision nor a finite TTC are never "worst".
+    """
 
     def badness(r: EpisodeRecord) -> tuple[int, float, float, tuple[str, str, int]]:
         res = r.result
@@ -489,8 +497,14 @@ def worst_records(records: Sequence[EpisodeRecord], n: int = WORST_EPISODES) -> 
         ttc = res["min_ttc"] if res["min_ttc"] is not None else math.inf
         return (0 if res["collision"] else 1, -impact, ttc, r.key)
 
-    ranked = sorted(records, key=badness)
-    return [r for r in ranked[:n] if r.result["collision"] or (r.result["min_ttc"] is not None)]
+    ranked = [
+        r for r in sorted(records, key=badness) if r.result["collision"] or r.result["min_ttc"] is not None
+    ]
+    chosen = ranked[:n]
+    for rec in ranked:
+        if all(c.task.policy != rec.task.policy for c in chosen):
+            chosen.append(rec)
+    return chosen
 
 
 def save_worst(records: Sequence[EpisodeRecord], out: Path, n: int = WORST_EPISODES) -> list[str]:
@@ -693,7 +707,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--address",
         default=None,
-        help="Ray cluster address ('auto', 'host:port', 'ray://host:10001'); default: a fresh local Ray",
+        help="Ray cluster address ('auto', 'host:port', 'ray://host:10001'; the cluster's Python needs"
+        " crossing-env installed); default: a fresh local Ray",
     )
     parser.add_argument(
         "--predictor",

@@ -389,22 +389,27 @@ class YieldingPolicy:
 
     1. **Legal yield** (zebra, UK rule 195 / StVO §26): a pedestrian on the crossing inside the ego's half
        of the road or walking towards it, or one waiting at the kerb within the crossing's extent ±
-       `kerb_margin` (or, with the intention predictor on, likely to cross there), makes the car stop before
-       the stop line; at a signalised crossing a red light for cars does. Attempted only if it needs at most
-       `yield_max_deceleration`: a car that can no longer stop comfortably does not slam on the brakes for a
-       pedestrian still on the kerb.
-    2. **Conflict check** (any pedestrian, anywhere): with constant velocity (and, when present, the
-       predicted path) the pedestrian's time inside the ego's lane corridor is compared with the time the
-       ego needs to pass its position "if it goes now" (accelerating at `go_acceleration` to the speed
-       limit). If they overlap within `time_buffer`, the car stops `pedestrian_gap` before the
+       `kerb_margin` (or, with the intention wrapper on, predicted to cross there), makes the car stop
+       before the stop line; at a signalised crossing a red light for cars does. Attempted only if it needs
+       at most `yield_max_deceleration`: a car that can no longer stop comfortably does not slam on the
+       brakes for a pedestrian still on the kerb. If the car has stood at the line for `offer_timeout`
+       while the only reason was a pedestrian who keeps waiting, the offer counts as declined and it goes.
+    2. **Conflict check** (any pedestrian, anywhere): with constant velocity, the predicted path (when
+       ``predicted_paths`` is present) and, for pedestrians the intention estimate expects to cross, a walk
+       straight into the road, the pedestrian's time inside the ego's lane corridor is compared with the
+       time the ego needs to pass its position "if it goes now" (accelerating at `go_acceleration` to the
+       speed limit). If they overlap within `time_buffer`, the car stops `pedestrian_gap` before the
        pedestrian (or at the stop line when that is nearer), with any deceleration up to the maximum.
+    3. **Occlusion**: a stationary vehicle beside the ego's lane just before the crossing may hide a
+       pedestrian (the multiple-threat case); the car passes it at `occlusion_speed`.
 
-    Otherwise it cruises at the speed limit and follows vehicles ahead (IDM). The policy is stateless;
-    "proceed when clear" falls out of re-evaluating both rules each step.
+    Otherwise it cruises at the speed limit and follows vehicles ahead (IDM). "Proceed when clear" falls
+    out of re-evaluating the rules each step; the only state is the offer timer, one per batch element,
+    which resets itself when the car is far before or past a crossing (`reset` clears it explicitly).
 
-    Departure from the literature: legal rules are simplified to the observation (no pedestrian gaze or
-    gesture); the German "influenced" test is approximated by stopping before the line rather than
-    creeping.
+    Departures from the literature: legal rules are simplified to what the observation shows (no gaze or
+    gesture); the German "influenced" test is approximated by stopping at the line rather than creeping
+    up to the pedestrian; waiting pedestrians are yielded to whatever the intention estimate says.
     """
 
     name: ClassVar[str] = "yielding"

@@ -34,8 +34,6 @@ from crossing_env.types import GroundTruth, PedState
 from crossing_env.world import World
 
 ENV_ID = "crossing_env/Crossing-v0"
-MAX_EPISODE_STEPS = 1000
-"""Upper bound for the TimeLimit wrapper (100 s at dt = 0.1); scenarios truncate earlier by duration."""
 
 
 def scenarios() -> dict[str, str]:
@@ -46,7 +44,8 @@ def scenarios() -> dict[str, str]:
 
 
 if ENV_ID not in gym.registry:
-    gym.register(id=ENV_ID, entry_point="crossing_env.env:CrossingEnv", max_episode_steps=MAX_EPISODE_STEPS)
+    # No max_episode_steps: the env truncates itself at the scenario's duration, whatever dt is.
+    gym.register(id=ENV_ID, entry_point="crossing_env.env:CrossingEnv")
 
 __all__ = [
     "ENV_ID",

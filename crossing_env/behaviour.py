@@ -193,6 +193,8 @@ def irrational_neighbour_fraction(
 def updated_ped_intensity(base: float, fraction: FloatArray) -> FloatArray:
     """QLB-updated pedestrian–pedestrian intensity for observed irrational fractions (seed Case 2).
 
-    Equals `base` where nobody misbehaves (the classical calibration, 0.42 in the seed paper).
+    Equals `base` where nobody misbehaves (the classical calibration, 0.42 in the seed paper). The QLB
+    curve dips slightly below `base` at small fractions (interference is destructive there); seeing others
+    misbehave should never make a pedestrian less careful, so the result is floored at `base`.
     """
-    return updated_force_intensity(base, np.clip(fraction, 0.0, 1.0))
+    return np.maximum(base, updated_force_intensity(base, np.clip(fraction, 0.0, 1.0)))

@@ -292,7 +292,7 @@ class ScenarioConfig:
     duration: float = 40.0
     """Episode time limit in seconds."""
     night: bool = False
-    """Night-time: pedestrians are less visible (observation noise) and walk more slowly."""
+    """Night-time: the ego sees pedestrians at half the perception range, and pedestrians walk 10% slower."""
 
 
 @dataclass(frozen=True)

@@ -61,7 +61,8 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
     (`EgoConfig.max_acceleration`), 0 holds speed (see `action_to_acceleration`).
 
     Observation: a Dict of float32 boxes (`crossing_env.observation`): ego state, K pedestrian slots
-    (presence, relative position and velocity, on-crossing / waiting / on-road flags) with each slot's
+    (presence, position relative to the ego, world-frame velocity, on-crossing / waiting / on-road flags;
+    the ego's heading is +x, so the frames differ by a translation only) with each slot's
     0.4 s position history, and M vehicle slots. Reward terms are reported in `info["rewards"]`; the
     world's ground truth (for metrics only) in `info["ground_truth"]`.
     """

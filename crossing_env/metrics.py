@@ -879,15 +879,17 @@ class EpisodeMetrics:
     def _update_yielding(self, gt: GroundTruth, rows: np.ndarray, front: float, speed: float) -> None:
         """Open, resolve and check yield obligations (see the class docstring)."""
         kind = self.scenario.crossing.kind
-        if kind == "none" or (kind == "signalised" and not gt.signal_pedestrian_green):
+        if kind == "none":
             return
+        # At a signal, obligations open only on pedestrian green; ones opened earlier are still checked.
+        may_open = kind != "signalised" or bool(gt.signal_pedestrian_green)
         cfg = self.config
         ca = gt.conflict_area
         tab = self._peds
         status = tab.status[rows]
         open_ = status == _OPEN
         dist = ca.stop_line_x - front
-        can_open = dist > speed * speed / (2.0 * cfg.yield_deceleration)
+        can_open = may_open and dist > speed * speed / (2.0 * cfg.yield_deceleration)
         candidates = can_open and np.count_nonzero((gt.on_crossing | gt.waiting) & (status == 0))
         if not candidates and not np.count_nonzero(open_):
             return  # nothing open and nobody who could open an obligation now

@@ -167,7 +167,8 @@ class PedestrianPopulation:
         self.position[i] = (spawn.x, start_y)
         self.velocity[i] = 0.0
         self.radius[i] = spawn.radius if spawn.radius is not None else self.config.radius
-        speed = spawn.desired_speed if spawn.desired_speed is not None else self._draw_speed()
+        # Night slows everyone, explicitly placed pedestrians included (_draw_speed applies it itself).
+        speed = spawn.desired_speed * self._speed_scale if spawn.desired_speed is not None else self._draw_speed()
         self.distracted[i] = (
             spawn.distracted if spawn.distracted is not None else self.rng.random() < b.distraction_rate
         )
@@ -193,7 +194,10 @@ class PedestrianPopulation:
         self.force_intensity[i] = self.config.social_force.ped_intensity
         self.turning_back[i] = False
         self.accepted_gap[i] = np.nan
-        if spawn.crossing_x is not None:
+        if not spawn.crosses:
+            cx = spawn.x
+            self.jaywalker[i] = False
+        elif spawn.crossing_x is not None:
             cx = spawn.crossing_x
             self.jaywalker[i] = not (
                 geo.has_crossing and geo.crossing_rect.x_min <= cx <= geo.crossing_rect.x_max

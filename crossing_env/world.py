@@ -62,7 +62,7 @@ class World:
         self._refresh_masks()
 
     def _refresh_masks(self) -> None:
-        """Per-pedestrian geometric masks, computed once per step and shared by traffic, observation, truth."""
+        """Per-pedestrian geometric masks, computed once per step for traffic, observation and truth."""
         peds = self.pedestrians
         self.ped_on_road = peds.on_road()
         """(n,) active and on the carriageway."""

@@ -14,8 +14,9 @@ Metrics in metres:
 
 Learned models use ``predictors/weights/<kind>_<scene>.pt`` (trained on that scene's ``train/`` split,
 selected on ``val/``); their 20 samples use :meth:`SocialRecurrent.sample`'s default ``correlated`` mode
-(chosen on the ETH and HOTEL validation splits over ``autoregressive`` and ``independent``). For SDD, ``<kind>_sdd.pt`` is used if present, else ``<kind>_all.pt`` (trained on all
-ETH/UCY recordings: a cross-dataset result, flagged in the output). SDD glitch steps are not filtered.
+(chosen on the ETH and HOTEL validation splits over ``autoregressive`` and ``independent``). For SDD,
+``<kind>_sdd.pt`` is used if present, else ``<kind>_all.pt`` (trained on all ETH/UCY recordings: a
+cross-dataset result, flagged in the output). SDD glitch steps are not filtered.
 """
 
 from __future__ import annotations

@@ -54,6 +54,8 @@ class ModelConfig:
     """Displacement per step (metres per 0.4 s) below which the previous heading is kept."""
     cv_residual: bool = False
     """Predict the mean displacement as a correction to the last displacement (constant-velocity prior)."""
+    sample_scale: float = 1.0
+    """Multiplier on sigma when sampling (``independent``/``correlated``), calibrated on the val split."""
 
     def __post_init__(self) -> None:
         if self.kind not in MODEL_KINDS:
@@ -349,6 +351,7 @@ class SocialRecurrent(nn.Module):
         raw, pos = self.rollout(obs, seq_start_end)
         raw = raw[:, -pos.shape[1] :]  # (N, T, 5)
         _, sigma, rho = gaussian_params(raw)
+        sigma = sigma * self.config.sample_scale
         shape = (num_samples, n, pos.shape[1] if mode == "independent" else 1, 2)
         e = torch.randn(shape, generator=generator, dtype=pos.dtype).to(pos.device)
         x = sigma[..., 0] * e[..., 0]

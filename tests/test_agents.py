@@ -311,3 +311,23 @@ def test_yielding_in_env_gives_way_without_collision() -> None:
     assert res.yield_violations == 0
     assert res.yield_obligations >= 1
     assert res.max_deceleration <= 4.05  # within nuPlan's comfort bound
+
+
+def test_policy_drives_a_vector_env() -> None:
+    import gymnasium as gym
+
+    import crossing_env
+
+    envs = gym.make_vec(crossing_env.ENV_ID, num_envs=2, vectorization_mode="sync", scenario="zebra_case1")
+    pol = make_policy("yielding", dt=0.1)
+    obs, _ = envs.reset(seed=[1, 2])
+    speeds = []
+    for _ in range(40):
+        action = pol(obs)
+        assert action.shape == (2, 1)
+        assert envs.action_space.contains(action)
+        obs, *_ = envs.step(action)
+        speeds.append(obs["ego"][:, 0].copy())
+    envs.close()
+    assert np.all(np.isfinite(speeds))
+    assert np.all(np.asarray(speeds) > 5.0)  # comfortable, late braking: still above 5 m/s after 4 s

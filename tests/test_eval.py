@@ -91,6 +91,7 @@ def test_cli_writes_table_json_csv_png_and_logs(
     assert worst, "no worst-episode logs written"
     log = json.loads(worst[0].read_text())
     assert log["policy"] == "constant_speed"  # a collision ranks first
+    assert {json.loads(p.read_text())["policy"] for p in worst} == {"constant_speed", "yielding"}
     assert len(log["actions"]) > 10
     assert not list(out.glob(".*.tmp")), "temporary files left behind"
 

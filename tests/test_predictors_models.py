@@ -145,7 +145,7 @@ def test_models_train_sample_and_are_deterministic(kind: str) -> None:
     )
     opt = torch.optim.Adam(m.parameters(), lr=1e-2)
     first = float(m.loss(obs, fut, sse))
-    for _ in range(40):
+    for _ in range(25):
         loss = m.loss(obs, fut, sse)
         opt.zero_grad()
         loss.backward()
@@ -162,7 +162,8 @@ def test_models_train_sample_and_are_deterministic(kind: str) -> None:
             assert float((s1[0] - s1[1]).abs().max()) > 0.0
         # the sampled spread is centred on the most-likely path for the Gaussian-noise modes
         many = m.sample(obs, sse, 4000, torch.Generator().manual_seed(0), mode="correlated")
-        torch.testing.assert_close(many.mean(0), pred, atol=0.1, rtol=0)
+        standard_error = many.std(0) / math.sqrt(4000)
+        assert bool(((many.mean(0) - pred).abs() < 5.0 * standard_error + 1e-4).all())
         with pytest.raises(ValueError, match="mode"):
             m.sample(obs, sse, 2, torch.Generator(), mode="magic")
 

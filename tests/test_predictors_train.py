@@ -117,8 +117,8 @@ def test_evaluate_cli_json_on_synthetic_data(data_root: Path, capsys: pytest.Cap
     assert rc == 0
     res = json.loads(capsys.readouterr().out)
     eth = res["results"]["cvm"]["eth"]
-    # synthetic walkers move at constant velocity: CVM is exact
-    assert eth["k1"][0] < 1e-3 and eth["ped20"][1] < 1e-3
+    # synthetic walkers move at constant velocity: CVM is exact up to the 1 mm rounding of the files
+    assert eth["k1"][0] < 1e-2 and eth["ped20"][1] < 1e-2
     cs = res["results"]["cvm-s"]["eth"]
     assert cs["ped20"][0] <= cs["scene20"][0] + 1e-9  # per-pedestrian min can only be smaller
     assert evaluate.main(["--data", str(data_root), "--scenes", "mars"]) == 2

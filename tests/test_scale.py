@@ -101,3 +101,27 @@ def test_vector_env_matches_single_envs():
             hashlib.sha256(o["pedestrians"].tobytes()).digest()
             == hashlib.sha256(obs["pedestrians"][i].tobytes()).digest()
         )
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mode", ["sync", "async"])
+def test_vector_envs_run_with_predictor_wrappers(mode):
+    from predictors.intention import QLBIntention
+    from predictors.trajectory_wrapper import TrajectoryPrediction
+
+    envs = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode=mode, scenario="busy_zebra",
+                        wrappers=[QLBIntention, TrajectoryPrediction])
+    obs, _ = envs.reset(seed=[1, 2])
+    assert obs["crossing_intention"].shape == (2, 16)
+    assert obs["predicted_paths"].shape == (2, 16, 12, 2)
+    present = obs["pedestrians"][..., 0] > 0
+    for _ in range(40):
+        obs, _, _, _, _ = envs.step(np.zeros((2, 1), dtype=np.float32))
+        present = obs["pedestrians"][..., 0] > 0
+        assert envs.single_observation_space.contains(
+            {key: value[0] for key, value in obs.items()})
+    # Absent slots carry no prediction; present ones do.
+    assert np.all(obs["crossing_intention"][~present] == 0)
+    if present.any():
+        assert np.abs(obs["predicted_paths"][present]).sum() > 0
+    envs.close()
