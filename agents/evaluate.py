@@ -26,6 +26,7 @@ import inspect
 import io
 import json
 import math
+import multiprocessing
 import os
 import sys
 import tempfile
@@ -231,7 +232,11 @@ def _run_local(
             progress()
         return out
     records: list[EpisodeRecord] = []
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    # forkserver, not fork: a forked child of a process that has run torch ops can hang in torch's
+    # thread pool, and the predictor wrappers run torch.
+    with ProcessPoolExecutor(
+        max_workers=workers, mp_context=multiprocessing.get_context("forkserver")
+    ) as pool:
         futures = [pool.submit(run_episode, t) for t in tasks]
         for fut in as_completed(futures):
             records.append(fut.result())

@@ -307,6 +307,8 @@ class RewardConfig:
     """Reward per step with deceleration beyond `hard_braking_threshold`."""
     hard_braking_threshold: float = 3.0
     """Deceleration in m/s² counted as hard braking."""
+    speeding: float = -0.1
+    """Reward per step per m/s above the speed limit (progress alone would reward driving ever faster)."""
     failing_to_yield: float = -2.0
     """Reward per step in which the ego occupies the crossing while a pedestrian is on it in its half."""
 
@@ -323,6 +325,13 @@ class ObservationConfig:
     """Objects farther than this from the ego are not observed, metres."""
     history_length: int = 8
     """Number of 0.4 s history samples per pedestrian slot (trajectory predictors need 8)."""
+
+    def __post_init__(self) -> None:
+        for name in ("max_pedestrians", "max_vehicles", "history_length"):
+            if not isinstance(getattr(self, name), int) or getattr(self, name) < 1:
+                raise ValueError(f"ObservationConfig.{name} must be an integer >= 1, got {getattr(self, name)!r}")
+        if not self.perception_range > 0:
+            raise ValueError(f"ObservationConfig.perception_range must be > 0, got {self.perception_range!r}")
 
 
 @dataclass(frozen=True)
@@ -341,3 +350,14 @@ class EnvConfig:
     """Width and height of rendered frames in pixels."""
     render_extent: float = 80.0
     """Metres of road shown across the rendered frame, centred on the ego."""
+
+    def __post_init__(self) -> None:
+        steps = 0.4 / self.dt if self.dt > 0 else 0.0
+        if not (self.dt > 0 and abs(steps - round(steps)) < 1e-9):
+            raise ValueError(f"EnvConfig.dt must be > 0 and divide 0.4 s (e.g. 0.05, 0.1, 0.2), got {self.dt!r}")
+        if not self.max_substep_displacement > 0:
+            raise ValueError(
+                f"EnvConfig.max_substep_displacement must be > 0, got {self.max_substep_displacement!r}"
+            )
+        if len(self.render_size) != 2 or min(self.render_size) < 16 or not self.render_extent > 0:
+            raise ValueError(f"EnvConfig.render_size/render_extent invalid: {self.render_size!r}, {self.render_extent!r}")

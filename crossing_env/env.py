@@ -26,15 +26,17 @@ END_OF_ROAD_MARGIN = 10.0
 
 
 def resolve_scenario(scenario: str | os.PathLike[str] | ScenarioConfig | None) -> ScenarioConfig:
-    """A scenario config from a built-in name, a TOML path, a config object, or None (the default)."""
-    if scenario is None:
-        return ScenarioConfig()
-    if isinstance(scenario, ScenarioConfig):
-        return scenario
-    if isinstance(scenario, (str, Path)) and str(scenario) == "default":
-        return ScenarioConfig()
-    from scenarios import load_scenario
+    """A validated scenario config from a built-in name, a TOML path, a config object, or None (the default).
 
+    Config objects built in Python go through the same schema checks as files, so a bad value fails here
+    with the field's name instead of misbehaving later.
+    """
+    if scenario is None or (isinstance(scenario, (str, Path)) and str(scenario) == "default"):
+        return ScenarioConfig()
+    from scenarios import load_scenario, validate_scenario
+
+    if isinstance(scenario, ScenarioConfig):
+        return validate_scenario(scenario)
     return load_scenario(scenario)
 
 
@@ -100,6 +102,7 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
                 if self._observer.space != self.observation_space:
                     raise ValueError("options['scenario'] must keep the observation layout")
         self.world = World(self.scenario, self.np_random, self.config)
+        self._observer.reset()
         gt = self.world.ground_truth()
         info = {"ground_truth": gt, "rewards": {}, "time": gt.time}
         if self.render_mode == "human":
@@ -141,6 +144,7 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
             "progress": w.progress * float(progress),
             "collision": w.collision if gt.collisions else 0.0,
             "hard_braking": w.hard_braking if gt.ego_acceleration <= -w.hard_braking_threshold else 0.0,
+            "speeding": w.speeding * max(0.0, float(gt.ego_velocity[0]) - self.scenario.road.speed_limit),
             "failing_to_yield": w.failing_to_yield if in_crossing and bool(peds_in_half.any()) else 0.0,
         }
 

@@ -87,6 +87,47 @@ class ObservationBuilder:
         self._stop_x = crossing.position - crossing.width / 2 - crossing.stop_line_offset
         self._crossing_end = crossing.position + crossing.width / 2
         self._zebra = 1.0 if crossing.kind == "zebra" else 0.0
+        self.out_of_range = 0
+        """Observations whose raw values left the space and had to be clipped (a bug detector; tests assert 0)."""
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget who was seen (call at every episode start: pedestrian ids restart)."""
+        self._seen_id = np.full(0, -1, dtype=np.int64)
+        self._visible_steps = np.zeros(0, dtype=np.int64)
+
+    def _track_visibility(self, peds, visible_rows: np.ndarray) -> np.ndarray:  # noqa: ANN001
+        """Update, per pool slot, how many consecutive steps its pedestrian has been visible."""
+        if self._seen_id.size != peds.capacity:
+            self._seen_id = np.full(peds.capacity, -1, dtype=np.int64)
+            self._visible_steps = np.zeros(peds.capacity, dtype=np.int64)
+        visible = np.zeros(peds.capacity, dtype=bool)
+        visible[visible_rows] = True
+        same = peds.ids == self._seen_id
+        self._visible_steps = np.where(visible, np.where(same, self._visible_steps + 1, 1), 0)
+        self._seen_id = np.where(visible, peds.ids, -1)
+        return self._visible_steps
+
+    @staticmethod
+    def _seen_history(peds, rows: np.ndarray, visible_steps: np.ndarray) -> np.ndarray:  # noqa: ANN001
+        """History of `rows` with samples taken before the pedestrian came into view replaced.
+
+        A sensor cannot know where a pedestrian was while it was hidden (behind a parked van, beyond range):
+        those samples repeat the oldest one seen, or the current position if no sample was seen yet — the
+        same padding as for a pedestrian who has just appeared.
+        """
+        hist = peds.history[rows]
+        length = hist.shape[1]
+        n, every = peds.step_count, peds.history_every
+        last_sample = n - n % every
+        first_seen = n - visible_steps[rows] + 1
+        seen = np.where(last_sample >= first_seen, (last_sample - first_seen) // every + 1, 0)
+        seen = np.minimum(seen, length)
+        if np.all(seen == length):
+            return hist
+        extended = np.concatenate([hist, peds.position[rows][:, None, :]], axis=1)
+        index = np.maximum(np.arange(length)[None, :], (length - seen)[:, None])
+        return np.take_along_axis(extended, index[:, :, None], axis=1)
 
     def build(self, world) -> CrossingObs:
         """Observation of `world` (a `crossing_env.world.World`); fresh float32 arrays on every call."""
@@ -121,6 +162,7 @@ class ObservationBuilder:
             parked = tr.parked & tr.active
             if parked.any():
                 visible &= ~_segment_hits_boxes(np.array([ex, ey]), pos, tr.boxes(parked))
+            visible_steps = self._track_visibility(peds, act[visible])
             key = np.where(visible, dist + np.where(dx < -2 * half_len, 100.0, 0.0), np.inf)
             order = np.argsort(key, kind="stable")[: min(cfg.max_pedestrians, int(visible.sum()))]
             rows = act[order]
@@ -139,7 +181,7 @@ class ObservationBuilder:
                 ped[:n, 5] = world.ped_on_crossing[rows]
             ped[:n, 6] = ~on_road & (kerb_dist < WAITING_DISTANCE) & slow
             ped[:n, 7] = on_road
-            hist = peds.history[rows]
+            hist = self._seen_history(peds, rows, visible_steps)
             history[:n, :, 0] = hist[:, :, 0] - ex
             history[:n, :, 1] = hist[:, :, 1] - ey
         self.last_slots[:] = -1
@@ -164,6 +206,9 @@ class ObservationBuilder:
             veh[:m, 5] = tr.length[vrows]
             veh[:m, 6] = tr.width[vrows]
         obs = {"ego": ego_obs, "pedestrians": ped, "pedestrian_history": history, "vehicles": veh}
-        for key, value in obs.items():  # a guarantee, not a transformation: values are within range
-            np.clip(value, self._low[key], self._high[key], out=value)
+        for key, value in obs.items():  # a guarantee, not a transformation: values should already fit
+            low, high = self._low[key], self._high[key]
+            if (value < low).any() or (value > high).any():
+                self.out_of_range += 1
+                np.clip(value, low, high, out=value)
         return obs

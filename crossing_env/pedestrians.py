@@ -317,7 +317,10 @@ class PedestrianPopulation:
                     self.group[joining, None] == self.group[None, mates]
                 )
                 arrived[joining] |= close.any(axis=1)
-        past_far_kerb = np.where(self.side > 0, y > self.geometry.kerb_north, y < self.geometry.kerb_south)
+        # Within half a metre of the far kerb counts as across: a crowd waiting there can block the last step.
+        past_far_kerb = np.where(
+            self.side > 0, y > self.geometry.kerb_north - 0.5, y < self.geometry.kerb_south + 0.5
+        )
         arrived |= (st == CROSSING) & past_far_kerb
         # Each transition applies to the state held at the start of the step (one transition per step),
         # because `arrived` refers to the waypoint of that state.
@@ -442,7 +445,8 @@ class PedestrianPopulation:
             return
         st = self.state[act]
         v0 = self.desired_speed[act].copy()
-        v0[st == WAITING] = 0.0
+        # Waiting pedestrians keep walking towards their kerb point (the arrival slow-down makes them stand
+        # there); with no attraction, the kerb repulsion would push them back from the kerb.
         v0[self.hesitate_left[act] > 0] = 0.0
         stay = st != CROSSING
         # A waiting pedestrian stands at the kerb; only crossing pedestrians may be on the carriageway.

@@ -56,6 +56,9 @@ class World:
         self.physics = PhysicsWorld(self.traffic.capacity, self.pedestrians.capacity, (t.length, t.width))
         self._sized_radius = np.full(self.pedestrians.capacity, 0.3)
         self.collisions: list[CollisionEvent] = []
+        """Ego collisions that began during the last step."""
+        self.background_collisions: list[CollisionEvent] = []
+        """Background car–pedestrian contacts that began during the last step (other_id: the pedestrian)."""
         self.background_contacts = 0
         self._ego_vehicle_contact = np.zeros(self.traffic.capacity, dtype=bool)
         self.conflict_area = self.geometry.conflict_area(scenario.ego.lane)
@@ -136,10 +139,21 @@ class World:
 
     def _record_contacts(self, contacts: list) -> None:
         self.collisions = []
+        self.background_collisions = []
         legal = self.ped_legal
         for c in contacts:
             if c.vehicle_slot != 0:
                 self.background_contacts += 1
+                self.background_collisions.append(
+                    CollisionEvent(
+                        time=round(self.time, 9),
+                        kind="background",
+                        other_id=int(self.pedestrians.ids[c.pedestrian_slot]),
+                        position=c.point,
+                        relative_speed=c.relative_speed,
+                        compliant=bool(legal[c.pedestrian_slot]),
+                    )
+                )
                 continue
             self.collisions.append(
                 CollisionEvent(
@@ -219,5 +233,7 @@ class World:
                 "phase": peds.phase[act].copy(),
                 "distracted": peds.distracted[act].copy(),
                 "jaywalker": peds.jaywalker[act].copy(),
+                "desired_speed": peds.base_speed[act].copy(),
+                "background_collisions": tuple(self.background_collisions),
             },
         )

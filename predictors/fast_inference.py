@@ -79,17 +79,26 @@ class FastPredictor:
         self.w_head, self.b_head = sd["head.weight"].T.copy(), sd["head.bias"]
         if c.kind == "s-cgru":
             h = c.hidden_size // 2
-            self.w_x, self.b_x = sd["cell.w.weight"].T.copy(), sd["cell.w.bias"]
+            w_x, self.b_x = sd["cell.w.weight"].T.copy(), sd["cell.w.bias"]
             ug, uc = model.cell.recurrent_blocks()
             self.ug, self.uc = ug.detach().numpy().copy(), uc.detach().numpy().copy()
             self.mod_b = sd["cell.modrelu_bias"]
             self.mix = np.repeat(_sigmoid(sd["cell.gate_mix"]), h).astype(np.float32)
         else:
-            self.w_ih, self.b_ih = sd["cell.weight_ih"].T.copy(), sd["cell.bias_ih"]
+            w_x, self.b_x = sd["cell.weight_ih"].T.copy(), sd["cell.bias_ih"]
             self.w_hh, self.b_hh = sd["cell.weight_hh"].T.copy(), sd["cell.bias_hh"]
-        self.cos_half_fov = math.radians(c.fov_deg) / 2.0
+        # Split the cell's input map into its displacement-embedding and social-embedding rows, so an
+        # empty social tensor (no neighbour in anyone's grid: common in sparse scenes) costs nothing.
+        e = c.embed_size
+        self.w_x_emb = np.ascontiguousarray(w_x[:e])
+        if self.pooling:
+            self.w_x_soc = np.ascontiguousarray(w_x[e:])
+            self.empty_soc = np.maximum(self.b_pool, 0.0) @ self.w_x_soc + self.b_x
+        self.half_fov = math.radians(c.fov_deg) / 2.0
 
-    def _pool(self, pos: np.ndarray, heading: np.ndarray, ok: np.ndarray, state: np.ndarray) -> np.ndarray:
+    def _pool(
+        self, pos: np.ndarray, heading: np.ndarray, ok: np.ndarray, state: np.ndarray
+    ) -> np.ndarray | None:
         c = self.config
         n, g = pos.shape[0], c.grid_size
         d = pos[None, :, :] - pos[:, None, :]  # d[i, j] = p_j - p_i
@@ -104,18 +113,20 @@ class FastPredictor:
         inside = (cx >= 0) & (cx < g) & (cy >= 0) & (cy < g)
         np.fill_diagonal(inside, False)
         if c.fov_deg < 360.0:
-            inside &= (np.abs(np.arctan2(y, x)) <= self.cos_half_fov) | ~ok[:, None]
+            inside &= (np.abs(np.arctan2(y, x)) <= self.half_fov) | ~ok[:, None]
         ii, jj = np.nonzero(inside)
+        if ii.size == 0:
+            return None
         m = np.zeros((n, g * g, n), np.float32)
         m[ii, (cy[ii, jj] * g + cx[ii, jj]).astype(np.int64), jj] = 1.0
         return (m.reshape(n * g * g, n) @ state).reshape(n, -1)
 
-    def _cell(self, x: np.ndarray, state: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+    def _cell(self, wx: np.ndarray, state: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+        """One step from the input pre-activation ``wx`` (input map and bias already applied)."""
         kind = self.config.kind
         h = state[0]
         if kind == "s-cgru":
             k = self.config.hidden_size // 2
-            wx = x @ self.w_x + self.b_x
             gg = h @ self.ug
             g_re = wx[:, : 2 * k] + gg[:, : 2 * k]
             g_im = wx[:, 3 * k : 5 * k] + gg[:, 2 * k :]
@@ -128,7 +139,7 @@ class FastPredictor:
             scale = np.maximum(mag + self.mod_b, 0.0) / mag
             z2 = np.concatenate([z, z], axis=1)
             return ((1.0 - z2) * h + z2 * np.concatenate([c_re * scale, c_im * scale], axis=1),)
-        gi = x @ self.w_ih + self.b_ih
+        gi = wx
         gh = h @ self.w_hh + self.b_hh
         if kind == "s-gru":
             n_h = h.shape[1]
@@ -171,11 +182,16 @@ class FastPredictor:
                 moving = speed > c.min_speed
                 heading = np.where(moving[:, None], rel / np.maximum(speed, 1e-9)[:, None], heading)
                 ok |= moving
-            x = np.maximum(rel @ self.w_in + self.b_in, 0.0)
+            wx = np.maximum(rel @ self.w_in + self.b_in, 0.0) @ self.w_x_emb
             if self.pooling:
-                soc = self._pool(pos, heading, ok, state[0])
-                x = np.concatenate([x, np.maximum(soc @ self.w_pool + self.b_pool, 0.0)], axis=1)
-            state = self._cell(x, state)
+                soc = self._pool(pos, heading, ok, state[0]) if t > 0 else None  # state is 0 at t = 0
+                if soc is None:
+                    wx += self.empty_soc
+                else:
+                    wx += np.maximum(soc @ self.w_pool + self.b_pool, 0.0) @ self.w_x_soc + self.b_x
+            else:
+                wx += self.b_x
+            state = self._cell(wx, state)
             if t > 0:
                 raw = state[0] @ self.w_head + self.b_head
                 if c.cv_residual:

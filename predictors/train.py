@@ -287,9 +287,7 @@ def train(cfg: TrainConfig) -> Path:
     )
     save_checkpoint(out, final, meta)
     scale = calibrate_sampling(out, val_w)
-    print(
-        f"saved {out} (best epoch {best_epoch}, val ADE/FDE {best[0]:.3f}/{best[1]:.3f}), scale {scale}"
-    )
+    print(f"saved {out} (best epoch {best_epoch}, val ADE/FDE {best[0]:.3f}/{best[1]:.3f}), scale {scale}")
     return out
 
 

@@ -10,7 +10,9 @@ The wrapper adds ``"predicted_paths"`` ``(K, 12, 2)`` (most-likely path, same fr
 and, with ``num_samples > 0``, ``"predicted_samples"`` ``(K, S, 12, 2)``. All present pedestrians form one
 window, so the social pooling sees every present neighbour. Predictions are clipped to the declared bounds.
 The most-likely path runs through :class:`~predictors.fast_inference.FastPredictor` (NumPy, same numbers as
-the torch model) to stay within the per-step budget; samples run through the torch model.
+the torch model) to stay within the per-step budget; samples run through the torch model. Without samples,
+an observation whose present slots and histories equal the previous call's reuses the previous paths
+(exact; helps when the env steps faster than the 0.4 s history spacing).
 Samples come from a private ``torch.Generator`` reseeded from the ``reset`` seed (seed 0 until the first
 seeded reset), never from a global RNG.
 """

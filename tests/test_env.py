@@ -74,15 +74,28 @@ def test_observation_always_inside_space(scenario_seed):
         if term or trunc:
             obs, _ = env.reset()
     assert seen_pedestrians > 0
+    assert env.unwrapped._observer.out_of_range == 0  # raw values fitted the space; nothing was clipped
 
 
 def test_reward_terms_named_and_summed():
     env = gym.make(ENV_ID)
     env.reset(seed=0)
     _, reward, _, _, info = env.step(np.array([1.0], dtype=np.float32))
-    assert set(info["rewards"]) == {"progress", "collision", "hard_braking", "failing_to_yield"}
+    assert set(info["rewards"]) == {"progress", "collision", "hard_braking", "speeding", "failing_to_yield"}
     assert reward == pytest.approx(sum(info["rewards"].values()))
     assert info["rewards"]["progress"] > 0
+
+
+def test_speeding_is_penalised_in_proportion_to_the_excess():
+    scenario = ScenarioConfig(ego=EgoConfig(speed=16.0), pedestrians=PedestrianConfig(spawn_rate=0))
+    env = CrossingEnv(scenario=scenario)
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(np.array([0.0], dtype=np.float32))
+    excess = 16.0 - scenario.road.speed_limit
+    assert info["rewards"]["speeding"] == pytest.approx(env.config.reward.speeding * excess)
+    env.reset(seed=0, options={"scenario": ScenarioConfig(pedestrians=PedestrianConfig(spawn_rate=0))})
+    _, _, _, _, info = env.step(np.array([0.0], dtype=np.float32))
+    assert info["rewards"]["speeding"] == 0.0
 
 
 def test_full_braking_counts_as_hard_braking():
@@ -159,3 +172,57 @@ def test_bad_action_rejected():
 
 def test_scenarios_listing_exposed():
     assert callable(crossing_env.scenarios)
+
+
+def test_bad_config_objects_fail_with_the_field_named():
+    from crossing_env.config import EnvConfig, ObservationConfig
+    from scenarios import ScenarioError
+
+    with pytest.raises(ScenarioError, match="ego"):
+        CrossingEnv(scenario=ScenarioConfig(ego=EgoConfig(lane=1)))  # a lane towards -x
+    with pytest.raises(ValueError, match="dt"):
+        EnvConfig(dt=0.0)
+    with pytest.raises(ValueError, match="dt"):
+        EnvConfig(dt=0.3)  # does not divide the 0.4 s history cadence
+    with pytest.raises(ValueError, match="history_length"):
+        ObservationConfig(history_length=0)
+
+
+def test_long_scenarios_are_not_cut_by_a_step_cap():
+    from crossing_env.config import EnvConfig
+
+    scenario = ScenarioConfig(duration=60.0, ego=EgoConfig(speed=0.0), pedestrians=PedestrianConfig(spawn_rate=0))
+    env = gym.make(ENV_ID, scenario=scenario, config=EnvConfig(dt=0.05))
+    env.reset(seed=0)
+    steps = 0
+    while True:
+        _, _, term, trunc, info = env.step(np.array([-1.0], dtype=np.float32))
+        steps += 1
+        if term or trunc:
+            break
+    assert trunc and steps == 1200 and info["time"] == pytest.approx(60.0)
+
+
+def test_history_holds_nothing_from_before_a_pedestrian_came_into_view():
+    """A pedestrian walking behind a parked van: its first visible history must not reveal its hidden path."""
+    env = gym.make(ENV_ID, scenario="occluded_parked_car")
+    obs, _ = env.reset(seed=0)
+    observer = env.unwrapped._observer
+    world = env.unwrapped.world
+    seen_before: set[int] = set()
+    appeared = 0
+    for _ in range(300):
+        ids = {int(world.pedestrians.ids[s]) for s in observer.last_slots if s >= 0}
+        for k, slot in enumerate(observer.last_slots):
+            if slot < 0:
+                continue
+            pid = int(world.pedestrians.ids[slot])
+            if pid not in seen_before:  # first frame this pedestrian is observed
+                appeared += 1
+                hist = obs["pedestrian_history"][k]
+                assert np.allclose(hist, hist[-1:], atol=1e-6) or world.time < 0.45, hist
+        seen_before |= ids
+        obs, _, term, trunc, _ = env.step(np.array([-0.2], dtype=np.float32))
+        if term or trunc:
+            break
+    assert appeared > 0

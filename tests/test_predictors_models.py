@@ -144,13 +144,13 @@ def test_models_train_sample_and_are_deterministic(kind: str) -> None:
         )
     )
     opt = torch.optim.Adam(m.parameters(), lr=1e-2)
-    first = float(m.loss(obs, fut, sse))
+    first = m.loss(obs, fut, sse).item()
     for _ in range(25):
         loss = m.loss(obs, fut, sse)
         opt.zero_grad()
         loss.backward()
         opt.step()
-    assert float(m.loss(obs, fut, sse)) < first - 0.5
+    assert m.loss(obs, fut, sse).item() < first - 0.5
     with torch.no_grad():
         pred = m.predict(obs, sse)
         assert pred.shape == fut.shape
@@ -204,3 +204,8 @@ def test_numpy_fast_path_matches_torch(kind: str) -> None:
         ref = m.predict(obs, torch.tensor([[0, obs.shape[0]]])).numpy()
     got = FastPredictor(m).predict(obs.numpy())
     assert abs(got - ref).max() < 1e-4
+    # far-apart pedestrians: empty social tensors take the shortcut path
+    far = obs * 50.0
+    with torch.no_grad():
+        ref_far = m.predict(far, torch.tensor([[0, far.shape[0]]])).numpy()
+    assert abs(FastPredictor(m).predict(far.numpy()) - ref_far).max() < 1e-3

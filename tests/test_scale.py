@@ -91,16 +91,22 @@ def test_sync_and_async_vector_envs_agree():
 
 
 def test_vector_env_matches_single_envs():
-    envs = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="sync")
-    obs, _ = envs.reset(seed=[3, 4])
-    for i, seed in enumerate([3, 4]):
-        single = gym.make(ENV_ID)
+    seeds, steps = [3, 4], 150
+    actions = np.random.default_rng(0).uniform(-1, 0, size=(steps, 2, 1)).astype(np.float32)  # slow: no crash
+    envs = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="sync", scenario="busy_zebra")
+    obs, _ = envs.reset(seed=seeds)
+    vector_trace = [obs["pedestrians"].copy()]
+    for a in actions:
+        obs, _, term, trunc, _ = envs.step(a)
+        assert not (term.any() or trunc.any())
+        vector_trace.append(obs["pedestrians"].copy())
+    for i, seed in enumerate(seeds):
+        single = gym.make(ENV_ID, scenario="busy_zebra")
         o, _ = single.reset(seed=seed)
-        assert np.array_equal(o["ego"], obs["ego"][i])
-        assert (
-            hashlib.sha256(o["pedestrians"].tobytes()).digest()
-            == hashlib.sha256(obs["pedestrians"][i].tobytes()).digest()
-        )
+        single_trace = [o["pedestrians"]] + [single.step(a[i])[0]["pedestrians"] for a in actions]
+        digest = hashlib.sha256(b"".join(x.tobytes() for x in single_trace)).digest()
+        assert digest == hashlib.sha256(b"".join(x[i].tobytes() for x in vector_trace)).digest()
+    assert not np.array_equal(vector_trace[-1][0], vector_trace[-1][1])  # the two seeds differ
 
 
 @pytest.mark.slow
@@ -109,8 +115,15 @@ def test_vector_envs_run_with_predictor_wrappers(mode):
     from predictors.intention import QLBIntention
     from predictors.trajectory_wrapper import TrajectoryPrediction
 
-    envs = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode=mode, scenario="busy_zebra",
-                        wrappers=[QLBIntention, TrajectoryPrediction])
+    envs = gym.make_vec(
+        ENV_ID,
+        num_envs=2,
+        vectorization_mode=mode,
+        scenario="busy_zebra",
+        wrappers=[QLBIntention, TrajectoryPrediction],
+        # torch's thread pool does not survive fork(): worker processes must be spawned.
+        vector_kwargs={"context": "spawn"} if mode == "async" else None,
+    )
     obs, _ = envs.reset(seed=[1, 2])
     assert obs["crossing_intention"].shape == (2, 16)
     assert obs["predicted_paths"].shape == (2, 16, 12, 2)
@@ -118,8 +131,7 @@ def test_vector_envs_run_with_predictor_wrappers(mode):
     for _ in range(40):
         obs, _, _, _, _ = envs.step(np.zeros((2, 1), dtype=np.float32))
         present = obs["pedestrians"][..., 0] > 0
-        assert envs.single_observation_space.contains(
-            {key: value[0] for key, value in obs.items()})
+        assert envs.single_observation_space.contains({key: value[0] for key, value in obs.items()})
     # Absent slots carry no prediction; present ones do.
     assert np.all(obs["crossing_intention"][~present] == 0)
     if present.any():
