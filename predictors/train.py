@@ -13,10 +13,14 @@ back to float32 on load.
 from __future__ import annotations
 
 import argparse
+import ast
+import inspect
+import itertools
 import json
 import os
 import sys
 import tempfile
+import textwrap
 import time
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
@@ -291,13 +295,33 @@ def train(cfg: TrainConfig) -> Path:
     return out
 
 
+def _field_docs(cls: type) -> dict[str, str]:
+    """The docstring under each field of a dataclass (CleanRL `Args` style), read from its source."""
+    tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
+    body = tree.body[0].body
+    docs = {}
+    for node, nxt in itertools.pairwise(body):
+        if (
+            isinstance(node, ast.AnnAssign)
+            and isinstance(nxt, ast.Expr)
+            and isinstance(nxt.value, ast.Constant)
+        ):
+            docs[node.target.id] = " ".join(str(nxt.value.value).split())
+    return docs
+
+
 def parse_args(argv: list[str] | None = None) -> TrainConfig:
-    """Parse command-line arguments into a :class:`TrainConfig`."""
+    """Parse command-line arguments into a :class:`TrainConfig` (help texts are the fields' docstrings)."""
     p = argparse.ArgumentParser(prog="crossing-train", description=__doc__.splitlines()[0])
     d = TrainConfig()
+    docs = _field_docs(TrainConfig)
     for f in fields(TrainConfig):
+        default = getattr(d, f.name)
         p.add_argument(
-            f"--{f.name.replace('_', '-')}", type=type(getattr(d, f.name)), default=getattr(d, f.name)
+            f"--{f.name.replace('_', '-')}",
+            type=type(default),
+            default=default,
+            help=f"{docs.get(f.name, '')} (default: {default})".replace("%", "%%"),
         )
     return TrainConfig(**vars(p.parse_args(argv)))
 
