@@ -29,6 +29,8 @@ HISTORY_INTERVAL = 0.4
 KERB_STANDOFF = 0.45
 """Distance in metres from the kerb line at which a waiting pedestrian stands."""
 ARRIVAL_TOLERANCE = 0.35
+CROWD_ARRIVAL = 3.0
+"""A pedestrian stopped this close to its kerb point (blocked by a waiting crowd) counts as waiting."""
 """Distance in metres at which a waypoint counts as reached."""
 KERB_ARRIVAL = (2.0, 0.6)
 """(along x, across y) metres within which a pedestrian heading for a kerb point counts as arrived at it."""
@@ -306,6 +308,9 @@ class PedestrianPopulation:
         )
         on_road = (y > self.geometry.kerb_south) & (y < self.geometry.kerb_north)
         arrived |= (st == APPROACHING) & self.intends & near_kerb & ~on_road
+        # Held up behind a crowd already waiting at the kerb: standing close to one's kerb point is waiting.
+        speed2 = self.velocity[:, 0] * self.velocity[:, 0] + self.velocity[:, 1] * self.velocity[:, 1]
+        arrived |= (st == APPROACHING) & self.intends & ~on_road & (dist < CROWD_ARRIVAL) & (speed2 < 0.15**2)
         # A group member walking up joins a companion already waiting at the kerb (its own kerb point may
         # be behind that companion).
         joining = np.flatnonzero((st == APPROACHING) & self.intends & (self.group >= 0) & ~on_road)
