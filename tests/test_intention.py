@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -137,24 +135,6 @@ def test_make_and_record_constructor_args() -> None:
     assert env._saved_kwargs == {"horizon": 4.0, "config": None}  # RecordConstructorArgs
     assert env.horizon == 4.0 and env.variant == "qlb"
     assert ClassicalIntention(_env()).variant == "cbm"
-
-
-@pytest.mark.parametrize("cls", [QLBIntention, ClassicalIntention])
-def test_fast_enough(cls: type[CrossingIntention]) -> None:
-    env = cls(_env(spawn_rate=40.0), horizon=2.0)
-    obs, _ = env.reset(seed=5)
-    raws = []
-    for _ in range(100):
-        obs, *_ = env.step(np.array([0.0], dtype=np.float32))
-        raws.append({k: v for k, v in obs.items() if k != "crossing_intention"})
-    for raw in raws[:10]:
-        env.observation(raw)
-    start = time.perf_counter()
-    for _ in range(3):
-        for raw in raws:
-            env.observation(raw)
-    per_step = (time.perf_counter() - start) / (3 * len(raws))
-    assert per_step < 1e-3  # budget 0.2 ms on an idle core; generous here for loaded CI machines
 
 
 def test_benchmark_metrics() -> None:

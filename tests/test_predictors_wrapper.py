@@ -1,6 +1,5 @@
 from __future__ import annotations
 
-import time
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -115,30 +114,15 @@ def test_bad_env_and_bad_path_errors(tmp_path: Any) -> None:
 
 
 @needs_weights
-def test_wrapper_cost_per_step_is_small() -> None:
-    import torch
-
-    torch.set_num_threads(1)
+def test_unchanged_history_is_served_from_the_cache_identically() -> None:
+    """Speed is measured in benchmarks/predictor_models.py; here only the cache's correctness."""
     base = FakePedEnv(n_present=K)
     env = TrajectoryPrediction(base)
     env.reset(seed=0)
     obs = base._obs()
-    rng = np.random.default_rng(0)
-    moved = [
-        {**obs, "pedestrian_history": obs["pedestrian_history"] + rng.normal(size=(1, 1, 2))}
-        for _ in range(30)
-    ]
-    for o in moved[:5]:
-        env.observation(o)
-    t0 = time.thread_time()  # CPU time of this thread: robust to other processes on a shared machine
-    for o in moved[5:]:
-        env.observation(o)
-    ms = (time.thread_time() - t0) / 25 * 1e3
-    # The target is 2 ms (benchmarks/predictors.py reports it); this is a loose regression guard.
-    assert ms < 30.0, ms
-    # an unchanged history is served from the cache, identically
-    a = env.observation(moved[-1])["predicted_paths"]
-    t1 = time.thread_time()
-    b = env.observation(moved[-1])["predicted_paths"]
-    assert time.thread_time() - t1 < 1e-3 * ms
-    np.testing.assert_array_equal(a, b)
+    moved = {**obs, "pedestrian_history": obs["pedestrian_history"] + 0.3}
+    a = env.observation(obs)["predicted_paths"].copy()
+    b = env.observation(moved)["predicted_paths"].copy()
+    c = env.observation(moved)["predicted_paths"]
+    assert not np.array_equal(a, b)  # a new history gives a new prediction
+    np.testing.assert_array_equal(b, c)

@@ -1,6 +1,6 @@
 """Parameter counts and per-batch inference latency of S-CGRU, S-GRU and S-LSTM (the seed paper's Table 2).
 
-Run: ``python benchmarks/predictors.py [--repeats 30] [--threads 1] [--fov-sweep --scene eth]``.
+Run: ``python benchmarks/predictor_models.py [--repeats 30] [--threads 1] [--fov-sweep --scene eth]``.
 
 Latencies are measured in one process as CPU time of the calling thread (``time.thread_time``, torch and
 the wrapper single-threaded), so that other processes on a shared machine inflate them less than wall
@@ -15,22 +15,16 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import sys
 import time
 from dataclasses import replace
 from pathlib import Path
 
-# This file is named like the package it measures: when run as a script its own folder comes first on
-# sys.path and would shadow ``predictors``. Put the repository root first instead.
-_ROOT = Path(__file__).resolve().parents[1]
-sys.path[:] = [str(_ROOT)] + [p for p in sys.path if Path(p or ".").resolve() != _ROOT / "benchmarks"]
+import numpy as np
+import torch
+from torch import nn
 
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
-from torch import nn  # noqa: E402
-
-from predictors.data import default_data_root, load_split, to_batch  # noqa: E402
-from predictors.models import ModelConfig, SocialRecurrent, count_parameters, default_config  # noqa: E402
+from predictors.data import default_data_root, load_split, to_batch
+from predictors.models import ModelConfig, SocialRecurrent, count_parameters, default_config
 
 
 def equal_dof_gru_hidden(target: int) -> int:
