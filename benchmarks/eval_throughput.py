@@ -2,7 +2,7 @@
 
 Runs the same task list (every built-in scenario × every policy × `--episodes`) once per worker count,
 checks that the records are identical, and prints episodes/s and the peak resident memory of the
-process and of its worker processes.
+process with its worker processes (sampled every 0.2 s; needs psutil, in the `bench` extra).
 
     python benchmarks/eval_throughput.py [--episodes 2] [--workers 1 2]
 """
@@ -10,19 +10,44 @@ process and of its worker processes.
 from __future__ import annotations
 
 import argparse
-import resource
+import threading
 import time
+
+import psutil
 
 from agents import POLICIES
 from agents.evaluate import make_tasks, run_tasks
 from scenarios import list_scenarios
 
 
-def peak_rss_mib() -> tuple[float, float]:
-    """Peak resident set size (MiB) of this process and of its largest finished child."""
-    own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-    children = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
-    return own, children
+class TreeMemory:
+    """Samples the summed resident memory of this process and all its descendants (workers) in a thread."""
+
+    def __init__(self, interval: float = 0.2) -> None:
+        self.interval = interval
+        self.peak = 0.0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self) -> None:
+        me = psutil.Process()
+        while not self._stop.is_set():
+            total = 0
+            for proc in [me, *me.children(recursive=True)]:
+                try:
+                    total += proc.memory_info().rss
+                except psutil.Error:  # a worker exited between listing and reading
+                    pass
+            self.peak = max(self.peak, total / 2**20)
+            self._stop.wait(self.interval)
+
+    def __enter__(self) -> TreeMemory:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join()
 
 
 def main() -> None:
@@ -37,16 +62,16 @@ def main() -> None:
     tasks = make_tasks(sorted(list_scenarios()), list(POLICIES), args.episodes, base_seed=2024)
     reference = None
     for workers in args.workers:
-        start = time.perf_counter()
-        records = run_tasks(tasks, workers=workers, show_progress=False)
-        elapsed = time.perf_counter() - start
+        with TreeMemory() as memory:
+            start = time.perf_counter()
+            records = run_tasks(tasks, workers=workers, show_progress=False)
+            elapsed = time.perf_counter() - start
         same = "reference" if reference is None else ("identical" if records == reference else "DIFFERENT")
         reference = reference or records
-        own, child = peak_rss_mib()
         print(
             f"workers={workers}: {len(tasks)} episodes in {elapsed:6.1f} s "
             f"= {len(tasks) / elapsed:5.2f} episodes/s"
-            f"  (records {same}; peak RSS main {own:.0f} MiB, largest worker {child:.0f} MiB)",
+            f"  (records {same}; peak RSS of the process tree {memory.peak:.0f} MiB)",
             flush=True,
         )
 
