@@ -29,7 +29,6 @@ import math
 import multiprocessing
 import os
 import sys
-import tempfile
 import time
 import zlib
 from collections.abc import Callable, Sequence
@@ -39,6 +38,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from crossing_env.files import write_bytes_atomic
 
 DEFAULT_EPISODES = 5
 """Episodes per (scenario, policy) in the default run: 8 scenarios x 5 seeds x 5 policies = 200 episodes."""
@@ -409,21 +410,6 @@ def format_table(summary: dict[str, Any], policies: Sequence[str]) -> str:
     return "\n".join(lines)
 
 
-def _atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write via a temp file in the same folder and `os.replace`, so readers never see half a file."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
 def _csv_text(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
@@ -486,7 +472,7 @@ def _plot(
 def _save_fig(fig: Any, path: Path) -> None:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110)
-    _atomic_write_bytes(path, buf.getvalue())
+    write_bytes_atomic(path, buf.getvalue())
 
 
 def worst_records(records: Sequence[EpisodeRecord], n: int = WORST_EPISODES) -> list[EpisodeRecord]:
@@ -536,7 +522,7 @@ def save_worst(records: Sequence[EpisodeRecord], out: Path, n: int = WORST_EPISO
                 "actions": rec.actions,
                 "metadata": meta,
             }
-            _atomic_write_bytes(folder / name, json.dumps(payload, indent=1).encode("utf-8"))
+            write_bytes_atomic(folder / name, json.dumps(payload, indent=1).encode("utf-8"))
         else:
             folder.mkdir(parents=True, exist_ok=True)
             extra = (
@@ -582,7 +568,7 @@ def write_outputs(
             for r in records
         ],
     }
-    _atomic_write_bytes(
+    write_bytes_atomic(
         out / "results.json", (json.dumps(doc, indent=1, sort_keys=True) + "\n").encode("utf-8")
     )
 
@@ -598,7 +584,7 @@ def write_outputs(
                 *(_csv_value(res[f]) for f in CSV_EPISODE_FIELDS[4:]),
             ]
         )
-    _atomic_write_bytes(out / "episodes.csv", _csv_text(CSV_EPISODE_FIELDS, rows).encode("utf-8"))
+    write_bytes_atomic(out / "episodes.csv", _csv_text(CSV_EPISODE_FIELDS, rows).encode("utf-8"))
 
     keys = [k for k in summary["overall"] if not isinstance(summary["overall"][k], tuple | list)]
     srows = []
@@ -609,7 +595,7 @@ def write_outputs(
         lo, hi = agg["collision_ci95"]
         srows.append([name, *(_csv_value(agg[k]) for k in keys), _csv_value(lo), _csv_value(hi)])
     header = ["policy", *keys, "collision_ci95_low", "collision_ci95_high"]
-    _atomic_write_bytes(out / "summary.csv", _csv_text(header, srows).encode("utf-8"))
+    write_bytes_atomic(out / "summary.csv", _csv_text(header, srows).encode("utf-8"))
 
     _plot(records, summary, policies, out)
     worst = save_worst(records, out)

@@ -18,9 +18,7 @@ over the "not yet on the road" samples (the ones that need a prediction).
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -29,6 +27,7 @@ import numpy as np
 
 from crossing_env.config import BehaviourConfig, PedestrianConfig, ScenarioConfig
 from crossing_env.env import CrossingEnv
+from crossing_env.files import write_text_atomic
 from predictors.intention import ClassicalIntention, QLBIntention
 from scenarios import load_scenario
 
@@ -189,19 +188,6 @@ def evaluate(episodes: int, seed: int) -> tuple[list[str], dict[str, float]]:
     return lines, summary
 
 
-def write_atomic(path: Path, text: str) -> None:
-    """Write `text` to `path` through a temporary file and os.replace (nothing half-written)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--episodes", type=int, default=12, help="episodes (seeds) per world")
@@ -220,7 +206,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"\n{args.episodes} episodes per world, seeds {seeds}, {elapsed:.0f} s")
     if args.write is not None:
         cmd = f"python -m benchmarks.intention --episodes {args.episodes} --seed {args.seed}"
-        write_atomic(args.write, f"Command: `{cmd}` ({elapsed:.0f} s)\n\n{table}\n")
+        write_text_atomic(args.write, f"Command: `{cmd}` ({elapsed:.0f} s)\n\n{table}\n")
     return 0
 
 

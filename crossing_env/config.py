@@ -329,7 +329,9 @@ class ObservationConfig:
     def __post_init__(self) -> None:
         for name in ("max_pedestrians", "max_vehicles", "history_length"):
             if not isinstance(getattr(self, name), int) or getattr(self, name) < 1:
-                raise ValueError(f"ObservationConfig.{name} must be an integer >= 1, got {getattr(self, name)!r}")
+                raise ValueError(
+                    f"ObservationConfig.{name} must be an integer >= 1, got {getattr(self, name)!r}"
+                )
         if not self.perception_range > 0:
             raise ValueError(f"ObservationConfig.perception_range must be > 0, got {self.perception_range!r}")
 
@@ -354,10 +356,14 @@ class EnvConfig:
     def __post_init__(self) -> None:
         steps = 0.4 / self.dt if self.dt > 0 else 0.0
         if not (self.dt > 0 and abs(steps - round(steps)) < 1e-9):
-            raise ValueError(f"EnvConfig.dt must be > 0 and divide 0.4 s (e.g. 0.05, 0.1, 0.2), got {self.dt!r}")
+            raise ValueError(
+                f"EnvConfig.dt must be > 0 and divide 0.4 s (e.g. 0.05, 0.1, 0.2), got {self.dt!r}"
+            )
         if not self.max_substep_displacement > 0:
             raise ValueError(
                 f"EnvConfig.max_substep_displacement must be > 0, got {self.max_substep_displacement!r}"
             )
         if len(self.render_size) != 2 or min(self.render_size) < 16 or not self.render_extent > 0:
-            raise ValueError(f"EnvConfig.render_size/render_extent invalid: {self.render_size!r}, {self.render_extent!r}")
+            raise ValueError(
+                f"EnvConfig.render_size/render_extent invalid: {self.render_size!r}, {self.render_extent!r}"
+            )

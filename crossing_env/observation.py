@@ -88,7 +88,7 @@ class ObservationBuilder:
         self._crossing_end = crossing.position + crossing.width / 2
         self._zebra = 1.0 if crossing.kind == "zebra" else 0.0
         self.out_of_range = 0
-        """Observations whose raw values left the space and had to be clipped (a bug detector; tests assert 0)."""
+        """Observations whose raw values left the space and were clipped (a bug detector; tests assert 0)."""
         self.reset()
 
     def reset(self) -> None:
@@ -96,7 +96,7 @@ class ObservationBuilder:
         self._seen_id = np.full(0, -1, dtype=np.int64)
         self._visible_steps = np.zeros(0, dtype=np.int64)
 
-    def _track_visibility(self, peds, visible_rows: np.ndarray) -> np.ndarray:  # noqa: ANN001
+    def _track_visibility(self, peds, visible_rows: np.ndarray) -> np.ndarray:
         """Update, per pool slot, how many consecutive steps its pedestrian has been visible."""
         if self._seen_id.size != peds.capacity:
             self._seen_id = np.full(peds.capacity, -1, dtype=np.int64)
@@ -109,7 +109,7 @@ class ObservationBuilder:
         return self._visible_steps
 
     @staticmethod
-    def _seen_history(peds, rows: np.ndarray, visible_steps: np.ndarray) -> np.ndarray:  # noqa: ANN001
+    def _seen_history(peds, rows: np.ndarray, visible_steps: np.ndarray) -> np.ndarray:
         """History of `rows` with samples taken before the pedestrian came into view replaced.
 
         A sensor cannot know where a pedestrian was while it was hidden (behind a parked van, beyond range):

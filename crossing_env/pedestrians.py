@@ -170,7 +170,9 @@ class PedestrianPopulation:
         self.velocity[i] = 0.0
         self.radius[i] = spawn.radius if spawn.radius is not None else self.config.radius
         # Night slows everyone, explicitly placed pedestrians included (_draw_speed applies it itself).
-        speed = spawn.desired_speed * self._speed_scale if spawn.desired_speed is not None else self._draw_speed()
+        speed = (
+            spawn.desired_speed * self._speed_scale if spawn.desired_speed is not None else self._draw_speed()
+        )
         self.distracted[i] = (
             spawn.distracted if spawn.distracted is not None else self.rng.random() < b.distraction_rate
         )

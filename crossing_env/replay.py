@@ -75,6 +75,7 @@ from typing import Any
 import numpy as np
 
 from crossing_env.config import EnvConfig, ScenarioConfig
+from crossing_env.files import give_default_permissions, write_text_atomic
 from crossing_env.types import GroundTruth, PedState
 
 APP_ID = "crossing_env"
@@ -201,27 +202,6 @@ def _scenario_to_data(scenario: str | os.PathLike[str] | ScenarioConfig) -> str 
     return str(scenario)
 
 
-def _write_text_atomic(path: Path, text: str) -> None:
-    """Write `text` to `path` via a temporary file in the same folder and `os.replace`."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-        _default_permissions(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-
-
-def _default_permissions(path: str) -> None:
-    """Give a `mkstemp` file (mode 0600) the usual mode for new files (0666 minus the umask)."""
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(path, 0o666 & ~umask)
-
-
 def save_episode_log(
     path: str | os.PathLike[str],
     *,
@@ -281,7 +261,7 @@ def save_episode_log(
         text = json.dumps(data, indent=1, allow_nan=False)
     except (TypeError, ValueError) as exc:
         raise ReplayError(f"save_episode_log({out}): metadata is not JSON-serialisable ({exc})") from exc
-    _write_text_atomic(out, text + "\n")
+    write_text_atomic(out, text + "\n")
     return out
 
 
@@ -589,7 +569,7 @@ def open_recording(out: str | os.PathLike[str], recording_id: str, blueprint: An
         yield rec
         rec.flush()
         rec.disconnect()
-        _default_permissions(tmp)
+        give_default_permissions(tmp)
         os.replace(tmp, path)
     finally:
         rec.disconnect()
@@ -1408,7 +1388,7 @@ def screenshot(
         else:
             raise ReplayError("the viewer wrote no screenshot")
         _shrink_png(Path(tmp), max_bytes)
-        _default_permissions(tmp)
+        give_default_permissions(tmp)
         os.replace(tmp, dst)
     finally:
         viewer.terminate()

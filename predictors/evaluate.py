@@ -23,15 +23,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from crossing_env.files import write_text_atomic
 from predictors.baselines import cvm, cvm_samples, kalman_predict, kalman_samples
 from predictors.data import SCENES, Windows, default_data_root, iterate_batches, load_split
 from predictors.models import MODEL_KINDS
@@ -177,13 +176,6 @@ def to_markdown(res: dict[str, object]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    with os.fdopen(fd, "w") as fh:
-        fh.write(text)
-    os.replace(tmp, path)
-
-
 def main(argv: list[str] | None = None) -> int:
     """Console entry point."""
     p = argparse.ArgumentParser(prog="python -m predictors.evaluate", description=__doc__.splitlines()[0])
@@ -224,7 +216,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     res = with_average(res)
     if a.save:
-        _write_atomic(Path(a.save), json.dumps(res, indent=1))
+        write_text_atomic(Path(a.save), json.dumps(res, indent=1))
     print(json.dumps(res, indent=1) if a.json else to_markdown(res))
     return 0
 

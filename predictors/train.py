@@ -17,9 +17,7 @@ import ast
 import inspect
 import itertools
 import json
-import os
 import sys
-import tempfile
 import textwrap
 import time
 from dataclasses import dataclass, fields, replace
@@ -29,6 +27,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from crossing_env.files import atomic_output
 from predictors.data import (
     SCENES,
     Windows,
@@ -123,15 +122,8 @@ def save_checkpoint(path: Path, model: SocialRecurrent, meta: dict[str, object])
         "state_dict": {k: v.detach().to(torch.float16).clone() for k, v in model.state_dict().items()},
         "meta": json.dumps(meta),
     }
-    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-    os.close(fd)
-    try:
+    with atomic_output(path) as tmp:
         torch.save(payload, tmp)
-        os.chmod(tmp, 0o644)  # mkstemp creates 0600; shipped weights must be world-readable
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
 
 
 def load_model(path: str | Path) -> SocialRecurrent:

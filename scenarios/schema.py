@@ -24,7 +24,6 @@ import math
 import os
 import re
 import sys
-import tempfile
 import types
 import typing
 from collections.abc import Callable, Iterator, Mapping
@@ -48,6 +47,7 @@ from crossing_env.config import (
     TrafficConfig,
     VehicleSpawn,
 )
+from crossing_env.files import write_text_atomic
 
 if sys.version_info >= (3, 11):
     import tomllib as _toml
@@ -743,12 +743,5 @@ def save_scenario(cfg: ScenarioConfig, path: str | os.PathLike[str]) -> Path:
     target = Path(path)
     validate_scenario(cfg, str(target))
     text = dump_scenario(cfg)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_text_atomic(target, text)
     return target

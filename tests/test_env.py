@@ -191,7 +191,9 @@ def test_bad_config_objects_fail_with_the_field_named():
 def test_long_scenarios_are_not_cut_by_a_step_cap():
     from crossing_env.config import EnvConfig
 
-    scenario = ScenarioConfig(duration=60.0, ego=EgoConfig(speed=0.0), pedestrians=PedestrianConfig(spawn_rate=0))
+    scenario = ScenarioConfig(
+        duration=60.0, ego=EgoConfig(speed=0.0), pedestrians=PedestrianConfig(spawn_rate=0)
+    )
     env = gym.make(ENV_ID, scenario=scenario, config=EnvConfig(dt=0.05))
     env.reset(seed=0)
     steps = 0
