@@ -140,11 +140,12 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
         in_crossing = ego_front > ca.x_min and ego_rear < ca.x_max
         y = gt.pedestrian_positions[:, 1]
         peds_in_half = gt.on_crossing & (y >= ca.half_y_min) & (y <= ca.half_y_max)
+        over_limit = float(gt.ego_velocity[0]) - self.scenario.road.speed_limit
         return {
             "progress": w.progress * float(progress),
             "collision": w.collision if gt.collisions else 0.0,
             "hard_braking": w.hard_braking if gt.ego_acceleration <= -w.hard_braking_threshold else 0.0,
-            "speeding": w.speeding * max(0.0, float(gt.ego_velocity[0]) - self.scenario.road.speed_limit),
+            "speeding": w.speeding * over_limit if over_limit > 0 else 0.0,
             "failing_to_yield": w.failing_to_yield if in_crossing and bool(peds_in_half.any()) else 0.0,
         }
 
