@@ -177,18 +177,15 @@ class Traffic:
             gap = np.where(closer, ped_gap, gap)
             lead_speed = np.where(closer, 0.0, lead_speed)
         # Stop line: red signal for everyone, pedestrians at the zebra for yielders.
-        if self.geometry.has_crossing:
+        yield_now = self.scenario.crossing.kind == "zebra" and (
+            ped_waiting_x.shape[0] > 0 or ped_on_crossing_x.shape[0] > 0
+        )
+        if self.geometry.has_crossing and (cars_must_stop or yield_now):
             stop_s = np.where(d > 0, self.geometry.stop_line_x(1.0), -self.geometry.stop_line_x(-1.0))
             to_line = stop_s - (s + half)
             braking = self.scenario.traffic.idm.max_deceleration * 0.6
             can_stop = (to_line > self.speed**2 / (2 * braking)) | (to_line > -0.5) & (self.speed < 1.0)
-            must = np.zeros(n, dtype=bool)
-            if cars_must_stop:
-                must |= True
-            if self.scenario.crossing.kind == "zebra" and (
-                ped_waiting_x.shape[0] or ped_on_crossing_x.shape[0]
-            ):
-                must |= self.yields
+            must = np.ones(n, dtype=bool) if cars_must_stop else self.yields
             stop = must & can_stop & (to_line > -1.0)
             line_gap = np.maximum(to_line, 0.01)
             closer = stop & (line_gap < gap)
