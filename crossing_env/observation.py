@@ -181,7 +181,10 @@ class ObservationBuilder:
                 ped[:n, 5] = world.ped_on_crossing[rows]
             ped[:n, 6] = ~on_road & (kerb_dist < WAITING_DISTANCE) & slow
             ped[:n, 7] = on_road
-            hist = self._seen_history(peds, rows, visible_steps)
+            if visible_steps[rows].min() > peds.history_every * peds.history_length:
+                hist = peds.history[rows]  # everyone shown has been in view for the whole history
+            else:
+                hist = self._seen_history(peds, rows, visible_steps)
             history[:n, :, 0] = hist[:, :, 0] - ex
             history[:n, :, 1] = hist[:, :, 1] - ey
         self.last_slots[:] = -1
