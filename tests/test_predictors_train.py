@@ -122,3 +122,22 @@ def test_evaluate_cli_json_on_synthetic_data(data_root: Path, capsys: pytest.Cap
     cs = res["results"]["cvm-s"]["eth"]
     assert cs["ped20"][0] <= cs["scene20"][0] + 1e-9  # per-pedestrian min can only be smaller
     assert evaluate.main(["--data", str(data_root), "--scenes", "mars"]) == 2
+
+
+class _RunsCode:
+    """A pickle payload that would create a file when unpickled by a permissive loader."""
+
+    def __init__(self, marker: Path) -> None:
+        self.marker = marker
+
+    def __reduce__(self):
+        return (Path.touch, (self.marker,))
+
+
+def test_checkpoint_that_tries_to_run_code_is_refused(tmp_path: Path) -> None:
+    marker = tmp_path / "code-ran"
+    evil = tmp_path / "evil.pt"
+    torch.save({"format": "x", "payload": _RunsCode(marker)}, evil)
+    with pytest.raises(ValueError, match=r"evil\.pt"):
+        load_model(evil)
+    assert not marker.exists()
