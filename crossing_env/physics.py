@@ -27,6 +27,10 @@ PEDESTRIAN_MASS = 70.0
 _ALL = pymunk.ShapeFilter()
 _NONE = pymunk.ShapeFilter(categories=0, mask=0)
 _PARK_X = -10_000.0
+# pymunk's batch buffers allocate C arrays that are never freed, so every world in the process shares
+# one pair instead of leaking a pair per episode (steps never run concurrently within a process).
+_SET_BUFFER = pymunk.batch.Buffer()  # pointed at each world's numpy state array before a set
+_GET_BUFFER = pymunk.batch.Buffer()  # owned by pymunk, which grows it as needed
 
 
 @dataclass(frozen=True)
@@ -85,8 +89,8 @@ class PhysicsWorld:
             self.space.add(body, shape)
             self.pedestrian_shapes.append(shape)
         self.space.on_collision(CAR, PEDESTRIAN, begin=_on_car_pedestrian, data=self.contacts)
-        self._set_buffer = pymunk.batch.Buffer()  # points at our numpy array (never reallocated)
-        self._get_buffer = pymunk.batch.Buffer()  # owned by pymunk (it grows this one)
+        self._set_buffer = _SET_BUFFER
+        self._get_buffer = _GET_BUFFER
         self._fields = pymunk.batch.BodyFields.POSITION | pymunk.batch.BodyFields.VELOCITY
         self._state = np.zeros((vehicle_capacity + pedestrian_capacity, 4))
         self._vehicle_on = np.zeros(vehicle_capacity, dtype=bool)
