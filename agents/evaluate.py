@@ -39,6 +39,7 @@ from typing import Any
 
 import numpy as np
 
+from crossing_env.cli import int_at_least
 from crossing_env.files import write_bytes_atomic
 
 DEFAULT_EPISODES = 5
@@ -630,16 +631,6 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
-
-
 def _int(text: str) -> int:
     try:
         return int(text)
@@ -674,14 +665,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--episodes",
-        type=_positive_int,
+        type=int_at_least(1),
         default=DEFAULT_EPISODES,
         help=f"episodes (seeds) per scenario and policy (default {DEFAULT_EPISODES})",
     )
     parser.add_argument("--seed", type=_int, default=DEFAULT_SEED, help=f"base seed (default {DEFAULT_SEED})")
     parser.add_argument(
         "--workers",
-        type=_positive_int,
+        type=int_at_least(1),
         default=default_workers(),
         help="parallel worker processes (local) or CPUs for a fresh local Ray"
         f" (default: the CPUs available, here {default_workers()})",

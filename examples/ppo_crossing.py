@@ -49,24 +49,9 @@ class Args:
 def parse_args(argv: list[str] | None = None) -> Args:
     """Parse the command line into `Args` (positive integers enforced; argparse exits with 2 otherwise)."""
 
-    def positive(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-        if value < 1:
-            raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-        return value
+    from crossing_env.cli import int_at_least
 
-    def non_negative(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}") from None
-        if value < 0:
-            raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
-        return value
-
+    positive, non_negative = int_at_least(1), int_at_least(0)
     d = Args()
     p = argparse.ArgumentParser(description="PPO (Stable-Baselines3) on crossing_env/Crossing-v0")
     p.add_argument("--timesteps", type=positive, default=d.timesteps, help="training environment steps")
