@@ -58,12 +58,19 @@ class Traffic:
 
     # ------------------------------------------------------------------ geometry helpers
     def _place_laterally(self, i: int) -> None:
-        """Centre y and direction of slot i; parked cars stand in a strip just outside the south kerb."""
+        """Centre y and direction of slot i from its highway-env lane (parked cars: the strip by the south kerb).
+
+        Done once per spawn: vehicles keep their lanes, so the hot path only reads the cached `y` and
+        `direction` arrays instead of querying lane objects.
+        """
+        lane = self.geometry.lanes[self.lane[i]]
+        self.direction[i] = float(np.sign(np.cos(lane.heading)))
         if self.parked[i]:
             self.y[i] = self.geometry.kerb_south - self.width[i] / 2 - 0.1
         else:
-            self.y[i] = self.geometry.lane_y[self.lane[i]]
-        self.direction[i] = self.geometry.lane_direction[self.lane[i]]
+            # The lane's centre line (exact for our straight lanes; `lane.position` would add ~1e-14 m of
+            # rounding from sin(π) on the lanes towards −x).
+            self.y[i] = float(lane.start[1])
 
     def positions(self) -> FloatArray:
         """(n, 2) centres."""
