@@ -58,7 +58,7 @@ class Traffic:
 
     # ------------------------------------------------------------------ geometry helpers
     def _place_laterally(self, i: int) -> None:
-        """Centre y and direction of slot i from its highway-env lane (parked cars: the strip by the south kerb).
+        """Centre y and direction of slot i from its highway-env lane (parked: the strip by the south kerb).
 
         Done once per spawn: vehicles keep their lanes, so the hot path only reads the cached `y` and
         `direction` arrays instead of querying lane objects.
