@@ -308,7 +308,7 @@ class PedestrianPopulation:
         near_kerb = (np.abs(y - self.waypoint[:, 1]) < KERB_ARRIVAL[1]) & (
             np.abs(self.position[:, 0] - self.waypoint[:, 0]) < KERB_ARRIVAL[0]
         )
-        on_road = (y > self.geometry.kerb_south) & (y < self.geometry.kerb_north)
+        on_road = self.on_road()  # state masks below only select active slots
         arrived |= (st == APPROACHING) & self.intends & near_kerb & ~on_road
         # Held up behind a crowd already waiting at the kerb: standing close to one's kerb point is waiting.
         speed2 = self.velocity[:, 0] * self.velocity[:, 0] + self.velocity[:, 1] * self.velocity[:, 1]
@@ -457,7 +457,7 @@ class PedestrianPopulation:
         v0[self.hesitate_left[act] > 0] = 0.0
         stay = st != CROSSING
         # A waiting pedestrian stands at the kerb; only crossing pedestrians may be on the carriageway.
-        stay &= ~((st == APPROACHING) & self._on_road(act))
+        stay &= ~((st == APPROACHING) & self.on_road()[act])
         sf = self.config.social_force
         acc = social_force_acceleration(
             self.position[act],
@@ -473,10 +473,6 @@ class PedestrianPopulation:
         )
         vel = self.velocity[act] + acc * self.dt
         self.velocity[act] = limit_speed(vel, np.maximum(v0, 0.05) * sf.max_speed_factor)
-
-    def _on_road(self, rows: np.ndarray) -> np.ndarray:
-        y = self.position[rows, 1]
-        return (y > self.geometry.kerb_south) & (y < self.geometry.kerb_north)
 
     def record_history(self) -> None:
         """Append the current positions to the 0.4 s history (call once per step, after physics)."""
