@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 import pymunk
 import pymunk.batch
+from numba import njit
 
 from crossing_env.types import BoolArray, FloatArray
 
@@ -130,14 +131,8 @@ class PhysicsWorld:
 
         Conservative: each car's box is grown by the distance both bodies can travel in `dt` plus 1 m.
         """
-        nv = self.num_vehicles
-        cars, peds = state[:nv][vehicles_on], state[nv:][pedestrians_on]
-        if cars.shape[0] == 0:
-            return False
-        reach = (np.abs(cars[:, 2:3]) + np.abs(cars[:, 3:4])) * dt + 1.0 + 2.0 * dt + self._half_diagonal
-        dx = np.abs(cars[:, 0:1] - peds[None, :, 0])
-        dy = np.abs(cars[:, 1:2] - peds[None, :, 1])
-        return bool(((dx < reach) & (dy < reach)).any())
+        nv, reach = self.num_vehicles, self._half_diagonal
+        return _any_car_within_reach(state, nv, vehicles_on, pedestrians_on, dt, reach)
 
     def step(
         self,
@@ -176,3 +171,27 @@ class PhysicsWorld:
         pymunk.batch.get_space_bodies(self.space, self._fields, buf)
         out = np.frombuffer(buf.float_buf(), dtype=np.float64).reshape(-1, 4)
         return out[nv:, :2].copy(), out[nv:, 2:].copy(), list(self.contacts)
+
+
+@njit(cache=True, nogil=True)
+def _any_car_within_reach(
+    state: FloatArray,
+    num_vehicles: int,
+    vehicles_on: BoolArray,
+    pedestrians_on: BoolArray,
+    dt: float,
+    half_diagonal: float,
+) -> bool:
+    """`_contact_possible` over the body state rows (x, y, vx, vy): vehicles first, then pedestrians."""
+    for c in range(num_vehicles):
+        if not vehicles_on[c]:
+            continue
+        reach = (abs(state[c, 2]) + abs(state[c, 3])) * dt + 1.0 + 2.0 * dt + half_diagonal
+        for p in range(num_vehicles, state.shape[0]):
+            if (
+                pedestrians_on[p - num_vehicles]
+                and abs(state[c, 0] - state[p, 0]) < reach
+                and abs(state[c, 1] - state[p, 1]) < reach
+            ):
+                return True
+    return False

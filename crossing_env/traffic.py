@@ -2,15 +2,16 @@
 
 Background drivers brake for anything in their lane ahead (cars, pedestrians on the carriageway), stop
 at red, and, if they are "yielders", give way at the zebra to pedestrians on it or waiting at the kerb.
-All of that is one vectorised pass per step.
+All of that is one compiled (numba) pass per step.
 """
 
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from crossing_env.config import ScenarioConfig, VehicleSpawn
-from crossing_env.idm import idm_acceleration
+from crossing_env.idm import idm_parameters, idm_scalar
 from crossing_env.road import RoadGeometry
 from crossing_env.types import FloatArray
 
@@ -148,58 +149,31 @@ class Traffic:
             ped_on_crossing_x: (Q, 2) positions of pedestrians on the crossing.
             cars_must_stop: the signal shows red to cars.
         """
-        n = self.capacity
-        act = self.active
-        d = self.direction
-        s = self.x * d  # position along each car's own travel direction
-        half = self.length / 2
-        gap = np.full(n, np.inf)
-        lead_speed = np.zeros(n)
-        # Leader in the same lane (ego included as a leader; parked cars are off the lane).
-        moving = act & ~self.parked
-        same = (self.lane[:, None] == self.lane[None, :]) & moving[:, None] & moving[None, :]
-        ahead = (s[None, :] - s[:, None]) * same
-        np.fill_diagonal(ahead, 0.0)
-        bumper = ahead - half[:, None] - half[None, :]
-        valid = same & (ahead > 0)
-        bumper = np.where(valid, bumper, np.inf)
-        lead = np.argmin(bumper, axis=1)
-        gap = bumper[np.arange(n), lead]
-        lead_speed = np.where(np.isfinite(gap), self.speed[lead], 0.0)
-        # Pedestrians on the carriageway in the car's lane ahead.
-        if ped_positions.shape[0]:
-            lane_idx = np.minimum(
-                np.maximum((ped_positions[:, 1] / self.geometry.road.lane_width).astype(np.int64), 0),
-                self.geometry.road.num_lanes - 1,
-            )
-            ped_s = ped_positions[None, :, 0] * d[:, None]
-            dist = ped_s - s[:, None] - half[:, None] - 0.5
-            hit = (
-                (lane_idx[None, :] == self.lane[:, None])
-                & (dist > -half[:, None])
-                & (dist < PEDESTRIAN_LOOKAHEAD)
-            )
-            ped_gap = np.where(hit, np.maximum(dist, 0.01), np.inf).min(axis=1)
-            closer = ped_gap < gap
-            gap = np.where(closer, ped_gap, gap)
-            lead_speed = np.where(closer, 0.0, lead_speed)
         # Stop line: red signal for everyone, pedestrians at the zebra for yielders.
         yield_now = self.scenario.crossing.kind == "zebra" and (
             ped_waiting_x.shape[0] > 0 or ped_on_crossing_x.shape[0] > 0
         )
-        if self.geometry.has_crossing and (cars_must_stop or yield_now):
-            stop_s = np.where(d > 0, self.geometry.stop_line_x(1.0), -self.geometry.stop_line_x(-1.0))
-            to_line = stop_s - (s + half)
-            braking = self.scenario.traffic.idm.max_deceleration * 0.6
-            can_stop = (to_line > self.speed**2 / (2 * braking)) | (to_line > -0.5) & (self.speed < 1.0)
-            must = np.ones(n, dtype=bool) if cars_must_stop else self.yields
-            stop = must & can_stop & (to_line > -1.0)
-            line_gap = np.maximum(to_line, 0.01)
-            closer = stop & (line_gap < gap)
-            gap = np.where(closer, line_gap, gap)
-            lead_speed = np.where(closer, 0.0, lead_speed)
-        acc = idm_acceleration(self.speed, self.desired_speed, gap, lead_speed, self.config.idm)
-        return np.where(act & ~self.parked, acc, 0.0)
+        geo = self.geometry
+        stop_lines = geo.has_crossing and (cars_must_stop or yield_now)
+        return _background_accelerations(
+            self.x,
+            self.direction,
+            self.lane,
+            self.speed,
+            self.length,
+            self.desired_speed,
+            self.active,
+            self.parked,
+            self.yields,
+            np.ascontiguousarray(ped_positions, dtype=np.float64).reshape(-1, 2),
+            float(geo.road.lane_width),
+            int(geo.road.num_lanes),
+            bool(stop_lines),
+            bool(cars_must_stop),
+            float(geo.stop_line_x(1.0)) if geo.has_crossing else 0.0,
+            float(geo.stop_line_x(-1.0)) if geo.has_crossing else 0.0,
+            *idm_parameters(self.config.idm),
+        )
 
     def advance(self, acceleration: FloatArray, dt: float, ego_max_speed: float) -> FloatArray:
         """Integrate speeds and positions (trapezoidal, no reversing); returns the per-slot displacement."""
@@ -220,3 +194,73 @@ class Traffic:
         out[0] = False
         self.active[out] = False
         self.ids[out] = -1
+
+
+@njit(cache=True, nogil=True)
+def _background_accelerations(
+    x: FloatArray,
+    direction: FloatArray,
+    lane: np.ndarray,
+    speed: FloatArray,
+    length: FloatArray,
+    desired_speed: FloatArray,
+    active: np.ndarray,
+    parked: np.ndarray,
+    yields: np.ndarray,
+    ped_positions: FloatArray,
+    lane_width: float,
+    num_lanes: int,
+    stop_lines: bool,
+    everyone_stops: bool,
+    stop_x_forward: float,
+    stop_x_backward: float,
+    a: float,
+    b: float,
+    max_deceleration: float,
+    time_headway: float,
+    min_gap: float,
+    delta: float,
+) -> FloatArray:
+    """Per slot: the nearest obstacle ahead (leader in lane, pedestrian on the road, stop line), then IDM.
+
+    Positions are measured along each car's own travel direction (`s = x · direction`); parked and free
+    slots get 0. Ties between equally close leaders go to the lower slot.
+    """
+    n = x.shape[0]
+    acc = np.zeros(n)
+    braking = max_deceleration * 0.6
+    for i in range(n):
+        if not active[i] or parked[i]:
+            continue
+        d = direction[i]
+        s = x[i] * d
+        half = length[i] / 2
+        gap, lead_speed = np.inf, 0.0
+        # Leader in the same lane (the ego included; parked cars stand off the lane).
+        for j in range(n):
+            if j == i or not active[j] or parked[j] or lane[j] != lane[i]:
+                continue
+            ahead = x[j] * d - s
+            if ahead > 0:
+                bumper = ahead - half - length[j] / 2
+                if bumper < gap:
+                    gap, lead_speed = bumper, speed[j]
+        # Pedestrians on the carriageway in the car's lane ahead.
+        for k in range(ped_positions.shape[0]):
+            ped_lane = min(max(int(ped_positions[k, 1] / lane_width), 0), num_lanes - 1)
+            dist = ped_positions[k, 0] * d - s - half - 0.5
+            if ped_lane == lane[i] and -half < dist < PEDESTRIAN_LOOKAHEAD:
+                ped_gap = max(dist, 0.01)
+                if ped_gap < gap:
+                    gap, lead_speed = ped_gap, 0.0
+        if stop_lines and (everyone_stops or yields[i]):
+            stop_s = stop_x_forward if d > 0 else -stop_x_backward
+            to_line = stop_s - (s + half)
+            can_stop = to_line > speed[i] ** 2 / (2 * braking) or (to_line > -0.5 and speed[i] < 1.0)
+            line_gap = max(to_line, 0.01)
+            if can_stop and to_line > -1.0 and line_gap < gap:
+                gap, lead_speed = line_gap, 0.0
+        acc[i] = idm_scalar(
+            speed[i], desired_speed[i], gap, lead_speed, a, b, max_deceleration, time_headway, min_gap, delta
+        )
+    return acc

@@ -167,6 +167,35 @@ class SocialRecurrent(nn.Module):
                 self.head.bias.zero_()
 
     # ----------------------------------------------------------------- pooling
+    def pool_cells(
+        self,
+        pos: torch.Tensor,
+        heading: torch.Tensor,
+        heading_ok: torch.Tensor,
+        pairs: tuple[torch.Tensor, torch.Tensor],
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The pairs ``(i, j)`` whose neighbour ``j`` falls in ``i``'s grid (and sector), and its cell index."""
+        c = self.config
+        i, j = pairs
+        g = c.grid_size
+        d = pos[j] - pos[i]
+        if c.pool_frame == "heading":
+            u = heading[i]
+            x = d[:, 0] * u[:, 0] + d[:, 1] * u[:, 1]
+            y = u[:, 0] * d[:, 1] - u[:, 1] * d[:, 0]
+            xy = torch.stack([x, y], dim=1)
+        else:
+            xy = d
+        half, cell = 0.5 * c.neighborhood, c.neighborhood / g
+        cxy = torch.floor((xy + half) / cell)  # same arithmetic per coordinate as a separate x and y
+        inside = ((cxy >= 0) & (cxy < g)).all(dim=1)
+        if c.fov_deg < 360.0:
+            in_fov = torch.atan2(xy[:, 1], xy[:, 0]).abs() <= math.radians(c.fov_deg) / 2.0
+            inside &= in_fov | ~heading_ok[i]
+        keep = torch.nonzero(inside).squeeze(1)
+        cxy = cxy[keep]
+        return i[keep], j[keep], (cxy[:, 1] * g + cxy[:, 0]).long()
+
     def social_pool(
         self,
         pos: torch.Tensor,
@@ -175,28 +204,56 @@ class SocialRecurrent(nn.Module):
         state: torch.Tensor,
         pairs: tuple[torch.Tensor, torch.Tensor],
     ) -> torch.Tensor:
-        """Grid social tensor ``(N, G*G*H)`` of neighbours' states (see module docstring)."""
-        c = self.config
-        i, j = pairs
-        n, g = pos.shape[0], c.grid_size
-        d = pos[j] - pos[i]
-        if c.pool_frame == "heading":
-            u = heading[i]
-            x = d[:, 0] * u[:, 0] + d[:, 1] * u[:, 1]
-            y = u[:, 0] * d[:, 1] - u[:, 1] * d[:, 0]
-        else:
-            x, y = d[:, 0], d[:, 1]
-        half, cell = 0.5 * c.neighborhood, c.neighborhood / g
-        cx = torch.floor((x + half) / cell).long()
-        cy = torch.floor((y + half) / cell).long()
-        inside = (cx >= 0) & (cx < g) & (cy >= 0) & (cy < g)
-        if c.fov_deg < 360.0:
-            in_fov = torch.atan2(y, x).abs() <= math.radians(c.fov_deg) / 2.0
-            inside &= in_fov | ~heading_ok[i]
-        idx = i * (g * g) + cy * g + cx
+        """Grid social tensor ``(N, G*G*H)`` of neighbours' states (see module docstring).
+
+        The reference form (used by tests); the rollout uses :meth:`pooled_embedding`, which equals
+        ``pool_embed`` of this tensor without building it.
+        """
+        g = self.config.grid_size
+        n = pos.shape[0]
+        i, j, cell = self.pool_cells(pos, heading, heading_ok, pairs)
         out = state.new_zeros(n * g * g, state.shape[1])
-        out.index_add_(0, idx[inside], state[j[inside]])
+        out.index_add_(0, i * (g * g) + cell, state[j])
         return out.view(n, g * g * state.shape[1])
+
+    def pool_weights(self) -> torch.Tensor:
+        """``pool_embed``'s weight as one ``(H, E)`` matrix per grid cell, ``(G*G, H, E)``; once per rollout."""
+        c = self.config
+        gg = c.grid_size * c.grid_size
+        return self.pool_embed.weight.view(c.embed_size, gg, c.hidden_size).permute(1, 2, 0).contiguous()
+
+    def pooled_embedding(
+        self,
+        pos: torch.Tensor,
+        heading: torch.Tensor,
+        heading_ok: torch.Tensor,
+        state: torch.Tensor,
+        pairs: tuple[torch.Tensor, torch.Tensor],
+        cell_weights: torch.Tensor,
+    ) -> torch.Tensor:
+        """``pool_embed(social_pool(...))`` ``(N, E)`` (before the ReLU) without the social tensor.
+
+        Why: the social tensor ``(N, G*G*H)`` is mostly empty (a pedestrian has a few neighbours, spread
+        over ``G*G`` cells), yet the dense form zero-fills it and multiplies all of it (as many
+        multiply-adds as an LSTM cell at ``H = 128``). By linearity ``pool_embed(S)_i = b + sum_j W_c(ij) h_j``
+        over the neighbours ``j`` of ``i``, so the neighbours' states are grouped by cell into a padded
+        ``(G*G, M, H)`` buffer (``M`` the most pairs in one cell) and multiplied with each cell's weight in
+        one batched matmul. Equal to the dense form up to float summation order. Shared by every model kind.
+        """
+        g = self.config.grid_size
+        gg = g * g
+        n = pos.shape[0]
+        out = self.pool_embed.bias.expand(n, -1).clone()
+        i, j, cell = self.pool_cells(pos, heading, heading_ok, pairs)
+        if cell.numel() == 0:
+            return out
+        counts = torch.bincount(cell, minlength=gg)
+        order = torch.argsort(cell, stable=True)
+        cell, i, j = cell[order], i[order], j[order]
+        rank = torch.arange(cell.numel(), device=cell.device) - (torch.cumsum(counts, 0) - counts)[cell]
+        buf = state.new_zeros(gg, int(counts.max()), state.shape[1])
+        buf[cell, rank] = state[j]
+        return out.index_add_(0, i, torch.bmm(buf, cell_weights)[cell, rank])
 
     # ------------------------------------------------------------------ rollout
     def _hidden(self, state: tuple[torch.Tensor, ...]) -> torch.Tensor:
@@ -210,15 +267,15 @@ class SocialRecurrent(nn.Module):
         heading_ok: torch.Tensor,
         state: tuple[torch.Tensor, ...],
         pairs: tuple[torch.Tensor, torch.Tensor],
-        blocks: tuple[torch.Tensor, torch.Tensor] | None,
+        weights: tuple[torch.Tensor, ...],
     ) -> tuple[torch.Tensor, ...]:
         x = torch.relu(self.input_embed(rel))
         if self.pooling:
-            soc = self.social_pool(pos, heading, heading_ok, self._hidden(state), pairs)
-            x = torch.cat([x, torch.relu(self.pool_embed(soc))], dim=1)
+            soc = self.pooled_embedding(pos, heading, heading_ok, self._hidden(state), pairs, weights[0])
+            x = torch.cat([x, torch.relu(soc)], dim=1)
         kind = self.config.kind
         if kind == "s-cgru":
-            return (self.cell(x, state[0], blocks),)
+            return (self.cell(x, state[0], weights[1:]),)
         if kind == "s-gru":
             return (self.cell(x, state[0]),)
         h, c = self.cell(x, state)
@@ -257,7 +314,11 @@ class SocialRecurrent(nn.Module):
         """
         n = obs.shape[0]
         pairs = window_pairs(seq_start_end, n) if self.pooling else (torch.empty(0), torch.empty(0))
-        blocks = self.cell.recurrent_blocks() if self.config.kind == "s-cgru" else None
+        # Per-rollout weight preparation: per-cell pooling weights (all pooling models) and the S-CGRU's
+        # folded matrices (see ComplexGRUCell.fused_weights).
+        weights: tuple[torch.Tensor, ...] = (self.pool_weights(),) if self.pooling else (obs.new_empty(0),)
+        if self.config.kind == "s-cgru":
+            weights += self.cell.fused_weights()
         h0 = obs.new_zeros(n, self.config.hidden_size)
         state: tuple[torch.Tensor, ...] = (h0,) if self.config.kind in ("s-cgru", "s-gru") else (h0, h0)
         heading = obs.new_zeros(n, 2)
@@ -281,7 +342,7 @@ class SocialRecurrent(nn.Module):
                 if t >= OBS_LEN:
                     fed.append(pos)
                 heading, heading_ok = self._update_heading(rel, heading, heading_ok)
-            state = self._step(rel, pos, heading, heading_ok, state, pairs, blocks)
+            state = self._step(rel, pos, heading, heading_ok, state, pairs, weights)
             if t > 0:
                 out = self.head(self._hidden(state))
                 if self.config.cv_residual:

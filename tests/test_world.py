@@ -190,3 +190,50 @@ def test_idm_steady_state_gap_matches_theory():
     s_e = (p.min_gap + v * p.time_headway) / np.sqrt(1 - (v / v0) ** 4)
     acc = idm_acceleration(np.array([v]), np.array([v0]), np.array([s_e]), np.array([v]), p)
     assert acc[0] == pytest.approx(0.0, abs=1e-9)
+
+
+def _reference_social_force(pos, vel, goals, v0, radii, stay, boxes, kerbs, p, k_p):
+    """Independent (P, P)-broadcast formulation of the module's equations, as an oracle for the kernel."""
+    to_goal = goals - pos
+    dist_goal = np.linalg.norm(to_goal, axis=1, keepdims=True)
+    e = np.divide(to_goal, dist_goal, out=np.zeros_like(to_goal), where=dist_goal > 1e-6)
+    acc = (v0[:, None] * np.minimum(1.0, dist_goal / 0.5) * e - vel) / p.relaxation_time
+    speed = np.linalg.norm(vel, axis=1, keepdims=True)
+    heading = np.where(speed > 0.05, vel / np.maximum(speed, 1e-9), e)
+
+    def repulsion(diff, reach, scale):
+        dist = np.linalg.norm(diff, axis=2)
+        exponent = (reach - dist) / scale
+        cos_phi = -np.einsum("ik,ijk->ij", heading, diff) / np.maximum(dist, 1e-9)
+        w = p.anisotropy + (1 - p.anisotropy) * 0.5 * (1 + cos_phi)
+        mag = np.where((exponent >= -30.0) & (dist > 1e-9), p.base_strength * np.exp(exponent), 0.0)
+        return ((w * mag / np.maximum(dist, 1e-9))[:, :, None] * diff).sum(axis=1)
+
+    diff = pos[:, None, :] - pos[None, :, :]
+    diff[np.arange(len(pos)), np.arange(len(pos))] = 1e6  # no self-interaction
+    acc += k_p[:, None] * repulsion(diff, radii[:, None] + radii[None, :], p.ped_range)
+    nearest = np.clip(pos[:, None, :], boxes[None, :, :2], boxes[None, :, 2:])
+    acc += p.vehicle_intensity * repulsion(pos[:, None, :] - nearest, radii[:, None], p.vehicle_range)
+    south, north = kerbs
+    below = pos[:, 1] < 0.5 * (south + north)
+    d = np.where(below, south - (pos[:, 1] + radii), (pos[:, 1] - radii) - north)
+    push = np.where(stay, np.minimum(p.kerb_strength * np.exp(np.maximum(-d / p.kerb_range, -30.0)), 50.0), 0)
+    acc[:, 1] += np.where(below, -push, push)
+    return acc
+
+
+@pytest.mark.parametrize("count", [1, 2, 7, 40])
+def test_compiled_social_force_matches_broadcast_formulation(count):
+    rng = np.random.default_rng(count)
+    pos = rng.uniform([0.0, -4.0], [15.0, 11.0], (count, 2))
+    vel = rng.normal(0.0, 1.0, (count, 2))
+    vel[0] = 0.01  # standing: heading falls back to the goal direction
+    goals = rng.uniform([0.0, -4.0], [15.0, 11.0], (count, 2))
+    v0, radii = rng.uniform(0.8, 1.6, count), rng.uniform(0.2, 0.3, count)
+    stay, k_p = rng.random(count) < 0.5, rng.uniform(0.3, 0.6, count)
+    boxes = np.array([[2.0, 1.0, 6.5, 2.8], [9.0, 4.5, 13.5, 6.3]])
+    p = SocialForceConfig()
+    got = social_force_acceleration(pos, vel, goals, v0, radii, stay, boxes, (0.0, 7.0), p, ped_intensity=k_p)
+    want = _reference_social_force(pos, vel, goals, v0, radii, stay, boxes, (0.0, 7.0), p, k_p)
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
+    assert np.abs(got).max() > 0.1  # the configuration exercises real forces
