@@ -14,11 +14,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from crossing_env.config import PedestrianConfig, PedestrianSpawn, ScenarioConfig
 from crossing_env.decisions import CrossingDecisionModel, DecisionContext
 from crossing_env.road import RoadGeometry
-from crossing_env.social_force import limit_speed, social_force_acceleration
+from crossing_env.social_force import model_parameters, walk_step
 from crossing_env.types import BehaviourEvent, FloatArray, PedState
 
 # Plain ints for the hot path (IntEnum comparisons go through Python-level enum machinery).
@@ -29,9 +30,11 @@ HISTORY_INTERVAL = 0.4
 KERB_STANDOFF = 0.45
 """Distance in metres from the kerb line at which a waiting pedestrian stands."""
 ARRIVAL_TOLERANCE = 0.35
+"""Distance in metres at which a waypoint counts as reached."""
 CROWD_ARRIVAL = 3.0
 """A pedestrian stopped this close to its kerb point (blocked by a waiting crowd) counts as waiting."""
-"""Distance in metres at which a waypoint counts as reached."""
+CROWD_STOPPED_SPEED = 0.15
+"""Speed (m/s) below which a pedestrian near its kerb point counts as held up by the crowd."""
 KERB_ARRIVAL = (2.0, 0.6)
 """(along x, across y) metres within which a pedestrian heading for a kerb point counts as arrived at it."""
 DISTRACTED_LOOK_DELAY = 1.0
@@ -272,16 +275,7 @@ class PedestrianPopulation:
         Cars already past the line, stopped cars and cars in lanes the pedestrian does not cross are
         ignored; a car whose body already covers the line gives a gap of 0.
         """
-        if rows.size == 0 or cars.x.size == 0:
-            return np.full(rows.size, np.inf)
-        cx = self.crossing_x[rows][:, None]
-        # Distance from the car's front to the pedestrian's line, along the car's travel direction.
-        ahead = (cx - cars.x[None, :]) * cars.direction[None, :] - cars.half_length[None, :]
-        covering = (ahead < 0) & (ahead > -2 * cars.half_length[None, :] - 0.5)
-        approaching = (ahead >= 0) & (cars.speed[None, :] > 0.3)
-        tta = np.where(approaching, ahead / np.maximum(cars.speed[None, :], 1e-3), np.inf)
-        tta = np.where(covering, 0.0, tta)
-        return tta.min(axis=1)
+        return _gaps(self.crossing_x, rows, cars.x, cars.direction, cars.half_length, cars.speed)
 
     def step(self, time: float, cars: CarSnapshot, pedestrian_green: bool | None) -> None:
         """Advance decisions and desired velocities by one step (physics integrates positions)."""
@@ -298,37 +292,18 @@ class PedestrianPopulation:
     def _update_states(self, cars: CarSnapshot, pedestrian_green: bool | None) -> None:
         if not self.state.any():
             return  # nobody around: nothing to decide
-        delta = self.waypoint - self.position
-        dist = np.sqrt(delta[:, 0] * delta[:, 0] + delta[:, 1] * delta[:, 1])
-        arrived = dist < ARRIVAL_TOLERANCE
         st = self.state
-        # In a crowd the exact kerb point may be taken by someone else: close to it along the kerb counts,
-        # and a crossing ends once the far kerb is passed (otherwise crowds at the zebra deadlock).
-        y = self.position[:, 1]
-        near_kerb = (np.abs(y - self.waypoint[:, 1]) < KERB_ARRIVAL[1]) & (
-            np.abs(self.position[:, 0] - self.waypoint[:, 0]) < KERB_ARRIVAL[0]
+        arrived = _arrived(
+            self.position,
+            self.velocity,
+            self.waypoint,
+            st,
+            self.intends,
+            self.group,
+            self.side,
+            self.geometry.kerb_south,
+            self.geometry.kerb_north,
         )
-        on_road = self.on_road()  # state masks below only select active slots
-        arrived |= (st == APPROACHING) & self.intends & near_kerb & ~on_road
-        # Held up behind a crowd already waiting at the kerb: standing close to one's kerb point is waiting.
-        speed2 = self.velocity[:, 0] * self.velocity[:, 0] + self.velocity[:, 1] * self.velocity[:, 1]
-        arrived |= (st == APPROACHING) & self.intends & ~on_road & (dist < CROWD_ARRIVAL) & (speed2 < 0.15**2)
-        # A group member walking up joins a companion already waiting at the kerb (its own kerb point may
-        # be behind that companion).
-        joining = np.flatnonzero((st == APPROACHING) & self.intends & (self.group >= 0) & ~on_road)
-        if joining.size:
-            mates = np.flatnonzero((st == WAITING) & (self.group >= 0))
-            if mates.size:
-                d = self.position[joining, None, :] - self.position[None, mates, :]
-                close = (d[..., 0] ** 2 + d[..., 1] ** 2 < GROUP_JOIN_DISTANCE**2) & (
-                    self.group[joining, None] == self.group[None, mates]
-                )
-                arrived[joining] |= close.any(axis=1)
-        # Within half a metre of the far kerb counts as across: a crowd waiting there can block the last step.
-        past_far_kerb = np.where(
-            self.side > 0, y > self.geometry.kerb_north - 0.5, y < self.geometry.kerb_south + 0.5
-        )
-        arrived |= (st == CROSSING) & past_far_kerb
         # Each transition applies to the state held at the start of the step (one transition per step),
         # because `arrived` refers to the waypoint of that state.
         before = st.copy()
@@ -450,29 +425,29 @@ class PedestrianPopulation:
         act = np.flatnonzero(self.active)
         if act.size == 0:
             return
-        st = self.state[act]
-        v0 = self.desired_speed[act].copy()
+        st = self.state
         # Waiting pedestrians keep walking towards their kerb point (the arrival slow-down makes them stand
         # there); with no attraction, the kerb repulsion would push them back from the kerb.
-        v0[self.hesitate_left[act] > 0] = 0.0
-        stay = st != CROSSING
+        v0 = np.where(self.hesitate_left > 0, 0.0, self.desired_speed)
         # A waiting pedestrian stands at the kerb; only crossing pedestrians may be on the carriageway.
-        stay &= ~((st == APPROACHING) & self.on_road()[act])
+        stay = (st != CROSSING) & ~((st == APPROACHING) & self.on_road())
         sf = self.config.social_force
-        acc = social_force_acceleration(
-            self.position[act],
-            self.velocity[act],
-            self.waypoint[act],
+        walk_step(
+            act,
+            self.position,
+            self.velocity,
+            self.waypoint,
             v0,
-            self.radius[act],
+            self.radius,
             stay,
             cars.boxes,
-            (self.geometry.kerb_south, self.geometry.kerb_north),
-            sf,
-            ped_intensity=self.force_intensity[act],
+            self.geometry.kerb_south,
+            self.geometry.kerb_north,
+            self.force_intensity,
+            self.dt,
+            sf.max_speed_factor,
+            *model_parameters(sf),
         )
-        vel = self.velocity[act] + acc * self.dt
-        self.velocity[act] = limit_speed(vel, np.maximum(v0, 0.05) * sf.max_speed_factor)
 
     def record_history(self) -> None:
         """Append the current positions to the 0.4 s history (call once per step, after physics)."""
@@ -502,3 +477,75 @@ class PedestrianPopulation:
             return ~on_road
         on_crossing = self.on_crossing() if on_crossing is None else on_crossing
         return ~on_road | (on_crossing & ~self.crossed_on_red & ~self.jaywalker)
+
+
+@njit(cache=True, nogil=True)
+def _arrived(
+    position: FloatArray,
+    velocity: FloatArray,
+    waypoint: FloatArray,
+    state: np.ndarray,
+    intends: np.ndarray,
+    group: np.ndarray,
+    side: np.ndarray,
+    kerb_south: float,
+    kerb_north: float,
+) -> np.ndarray:
+    """(n,) whether each slot has reached the waypoint of its current state (compiled: per-step hot path).
+
+    Besides being within `ARRIVAL_TOLERANCE` of it: in a crowd the exact kerb point may be taken by
+    someone else, so being close to it along the kerb counts, and so does standing still within
+    `CROWD_ARRIVAL` of it, held up behind a crowd already waiting; a group member walking up joins a
+    companion waiting at the kerb (its own kerb point may be behind that companion); and a crossing ends
+    within half a metre of the far kerb, where a crowd waiting to cross the other way can block the last
+    step (otherwise crowds at the zebra deadlock).
+    """
+    n = position.shape[0]
+    arrived = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        if state[i] == INACTIVE:
+            continue
+        x, y = position[i, 0], position[i, 1]
+        dx, dy = waypoint[i, 0] - x, waypoint[i, 1] - y
+        dist = math.sqrt(dx * dx + dy * dy)
+        arrived[i] = dist < ARRIVAL_TOLERANCE
+        on_road = kerb_south < y < kerb_north
+        if state[i] == APPROACHING and intends[i] and not on_road:
+            near_kerb = abs(dy) < KERB_ARRIVAL[1] and abs(dx) < KERB_ARRIVAL[0]
+            speed2 = velocity[i, 0] * velocity[i, 0] + velocity[i, 1] * velocity[i, 1]
+            held_up = dist < CROWD_ARRIVAL and speed2 < CROWD_STOPPED_SPEED**2
+            arrived[i] |= near_kerb or held_up
+            if group[i] >= 0 and not arrived[i]:
+                for j in range(n):
+                    if state[j] == WAITING and group[j] == group[i]:
+                        gx, gy = x - position[j, 0], y - position[j, 1]
+                        if gx * gx + gy * gy < GROUP_JOIN_DISTANCE**2:
+                            arrived[i] = True
+                            break
+        elif state[i] == CROSSING:
+            arrived[i] |= y > kerb_north - 0.5 if side[i] > 0 else y < kerb_south + 0.5
+    return arrived
+
+
+@njit(cache=True, nogil=True)
+def _gaps(
+    crossing_x: FloatArray,
+    rows: np.ndarray,
+    car_x: FloatArray,
+    direction: FloatArray,
+    half_length: FloatArray,
+    speed: FloatArray,
+) -> FloatArray:
+    """`PedestrianPopulation.gaps` for the pedestrians at `rows` (compiled: called every step)."""
+    out = np.full(rows.shape[0], np.inf)
+    for k in range(rows.shape[0]):
+        cx = crossing_x[rows[k]]
+        for c in range(car_x.shape[0]):
+            # Distance from the car's front to the pedestrian's line, along the car's travel direction.
+            ahead = (cx - car_x[c]) * direction[c] - half_length[c]
+            if ahead < 0:
+                if ahead > -2 * half_length[c] - 0.5:
+                    out[k] = 0.0  # the car's body covers the line
+            elif speed[c] > 0.3:
+                out[k] = min(out[k], ahead / max(speed[c], 1e-3))
+    return out

@@ -34,11 +34,6 @@ _MIN_EXPONENT = -30.0
 subnormal range, where floating-point arithmetic is orders of magnitude slower."""
 
 
-def _norm(v: FloatArray) -> FloatArray:
-    """Euclidean norm over the last axis of (..., 2) arrays (cheaper than np.linalg.norm for small arrays)."""
-    return np.sqrt(v[..., 0] * v[..., 0] + v[..., 1] * v[..., 1])
-
-
 def social_force_acceleration(
     positions: FloatArray,
     velocities: FloatArray,
@@ -75,6 +70,7 @@ def social_force_acceleration(
         np.asarray(params.ped_intensity if ped_intensity is None else ped_intensity, dtype=np.float64), (n,)
     )
     return _social_force_kernel(
+        np.arange(n),
         np.ascontiguousarray(positions, dtype=np.float64),
         np.ascontiguousarray(velocities, dtype=np.float64),
         np.ascontiguousarray(goals, dtype=np.float64),
@@ -85,6 +81,13 @@ def social_force_acceleration(
         float(kerbs[0]),
         float(kerbs[1]),
         np.ascontiguousarray(k_p),
+        *model_parameters(params),
+    )
+
+
+def model_parameters(params: SocialForceConfig) -> tuple[float, ...]:
+    """The config as the positional floats the compiled kernels take (after `k_p`)."""
+    return (
         float(params.relaxation_time),
         float(params.base_strength),
         float(params.ped_range),
@@ -97,7 +100,50 @@ def social_force_acceleration(
 
 
 @njit(cache=True, nogil=True)
+def walk_step(
+    rows: np.ndarray,
+    pos: FloatArray,
+    vel: FloatArray,
+    goals: FloatArray,
+    desired: FloatArray,
+    radii: FloatArray,
+    stay: BoolArray,
+    boxes: FloatArray,
+    south: float,
+    north: float,
+    k_p: FloatArray,
+    dt: float,
+    max_speed_factor: float,
+    tau: float,
+    base: float,
+    ped_range: float,
+    vehicle_range: float,
+    vehicle_intensity: float,
+    lam: float,
+    kerb_strength: float,
+    kerb_range: float,
+) -> None:
+    """Advance the velocities of pool `rows` by one step of the social force, in place.
+
+    The same as `social_force_acceleration` on the gathered rows followed by `limit_speed` to
+    `max(desired, 0.05) · max_speed_factor`, without the gathers (a pedestrian pool is mostly addressed
+    through its active rows).
+    """
+    acc = _social_force_kernel(
+        rows, pos, vel, goals, desired, radii, stay, boxes, south, north, k_p, tau, base, ped_range,
+        vehicle_range, vehicle_intensity, lam, kerb_strength, kerb_range,
+    )  # fmt: skip
+    for k in range(rows.shape[0]):
+        i = rows[k]
+        vx, vy = vel[i, 0] + acc[k, 0] * dt, vel[i, 1] + acc[k, 1] * dt
+        scale = min(1.0, max(desired[i], 0.05) * max_speed_factor / max(math.sqrt(vx * vx + vy * vy), 1e-9))
+        vel[i, 0] = vx * scale
+        vel[i, 1] = vy * scale
+
+
+@njit(cache=True, nogil=True)
 def _social_force_kernel(
+    rows: np.ndarray,
     pos: FloatArray,
     vel: FloatArray,
     goals: FloatArray,
@@ -117,14 +163,17 @@ def _social_force_kernel(
     kerb_strength: float,
     kerb_range: float,
 ) -> FloatArray:
-    """The model of the module docstring, one pedestrian at a time (compiled: no (P, P) temporaries).
+    """The model of the module docstring for the pedestrians at `rows` of the arrays, one at a time.
+
+    Compiled: no (P, P) temporaries. Returns (len(rows), 2); `k_p` is indexed like the arrays.
 
     Pairs whose exponent is below `_MIN_EXPONENT` (centres more than ~9 m apart) are skipped: their term is
     below 1e-11 m/s², and skipping them keeps the cost near-linear in sparse crowds.
     """
-    n = pos.shape[0]
+    n = rows.shape[0]
     acc = np.empty((n, 2))
-    for i in range(n):
+    for row in range(n):
+        i = rows[row]
         x, y = pos[i, 0], pos[i, 1]
         gx, gy = goals[i, 0] - x, goals[i, 1] - y
         dist_goal = math.sqrt(gx * gx + gy * gy)
@@ -138,7 +187,8 @@ def _social_force_kernel(
         hx, hy = (vx / speed, vy / speed) if speed > 0.05 else (ex, ey)
         # Anisotropy w(φ) = λ + (1 − λ)(1 + cos φ)/2 with cos φ = −heading · n_ij.
         fx = fy = 0.0
-        for j in range(n):
+        for other in range(n):
+            j = rows[other]
             if j == i:
                 continue
             dx, dy = x - pos[j, 0], y - pos[j, 1]  # from j to i
@@ -174,13 +224,6 @@ def _social_force_kernel(
             d = south - (y + radii[i]) if below else (y - radii[i]) - north
             push = min(kerb_strength * math.exp(max(-d / kerb_range, _MIN_EXPONENT)), 50.0)
             ay += -push if below else push
-        acc[i, 0] = ax
-        acc[i, 1] = ay
+        acc[row, 0] = ax
+        acc[row, 1] = ay
     return acc
-
-
-def limit_speed(velocities: FloatArray, max_speeds: FloatArray) -> FloatArray:
-    """Scale velocities down to at most `max_speeds` (P,) m/s."""
-    speed = _norm(velocities)
-    scale = np.minimum(1.0, max_speeds / np.maximum(speed, 1e-9))
-    return velocities * scale[:, None]

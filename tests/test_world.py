@@ -8,7 +8,7 @@ import pytest
 from crossing_env.config import IDMConfig, SocialForceConfig
 from crossing_env.idm import idm_acceleration
 from crossing_env.physics import PhysicsWorld
-from crossing_env.social_force import limit_speed, social_force_acceleration
+from crossing_env.social_force import model_parameters, social_force_acceleration, walk_step
 
 NO_BOXES = np.zeros((0, 4))
 FAR_KERBS = (-1000.0, -999.0)  # kerbs far away: no kerb force
@@ -68,6 +68,12 @@ def test_inactive_slots_do_not_collide():
 
 
 DEFAULT_SF = SocialForceConfig()
+
+
+def limit_speed(velocities, max_speeds):
+    """Scale (P, 2) velocities down to at most `max_speeds` (P,) m/s."""
+    speed = np.linalg.norm(velocities, axis=1)
+    return velocities * np.minimum(1.0, max_speeds / np.maximum(speed, 1e-9))[:, None]
 
 
 def _walk(positions, goals, speeds, steps, dt=0.1, params=DEFAULT_SF):
@@ -237,3 +243,24 @@ def test_compiled_social_force_matches_broadcast_formulation(count):
     want = _reference_social_force(pos, vel, goals, v0, radii, stay, boxes, (0.0, 7.0), p, k_p)
     np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-9)
     assert np.abs(got).max() > 0.1  # the configuration exercises real forces
+
+
+def test_walk_step_on_pool_rows_matches_gathered_acceleration_and_speed_limit():
+    rng = np.random.default_rng(3)
+    n = 12
+    pos, vel = rng.uniform(0.0, 8.0, (n, 2)), rng.normal(0.0, 1.0, (n, 2))
+    goals, v0 = rng.uniform(0.0, 8.0, (n, 2)), rng.uniform(0.0, 1.6, n)
+    radii, stay, k_p = np.full(n, 0.3), rng.random(n) < 0.5, rng.uniform(0.3, 0.6, n)
+    boxes = np.array([[2.0, 1.0, 6.5, 2.8]])
+    rows = np.array([0, 2, 3, 7, 11])  # the other slots are free and must neither act nor move
+    p = DEFAULT_SF
+    acc = social_force_acceleration(
+        pos[rows], vel[rows], goals[rows], v0[rows], radii[rows], stay[rows], boxes, (0.0, 7.0), p, k_p[rows]
+    )
+    want = vel.copy()
+    want[rows] = limit_speed(vel[rows] + acc * 0.1, np.maximum(v0[rows], 0.05) * p.max_speed_factor)
+    got = vel.copy()
+    walk_step(rows, pos, got, goals, v0, radii, stay, boxes, 0.0, 7.0, k_p, 0.1, p.max_speed_factor,
+              *model_parameters(p))  # fmt: skip
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
+    assert not np.allclose(got[rows], vel[rows])
