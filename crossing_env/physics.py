@@ -124,16 +124,6 @@ class PhysicsWorld:
                 shapes[i].filter = _ALL if new[i] else _NONE
             old[:] = new
 
-    def _contact_possible(
-        self, state: FloatArray, vehicles_on: BoolArray, pedestrians_on: BoolArray, dt: float
-    ) -> bool:
-        """Whether any car could reach any pedestrian within this step (else one substep is exact enough).
-
-        Conservative: each car's box is grown by the distance both bodies can travel in `dt` plus 1 m.
-        """
-        nv, reach = self.num_vehicles, self._half_diagonal
-        return _any_car_within_reach(state, nv, vehicles_on, pedestrians_on, dt, reach)
-
     def step(
         self,
         vehicle_positions: FloatArray,
@@ -152,16 +142,21 @@ class PhysicsWorld:
         self._sync_filters(vehicles_on, pedestrians_on)
         nv = self.num_vehicles
         state = self._state
-        state[:nv, :2] = np.where(vehicles_on[:, None], vehicle_positions, self._parking[:nv])
-        state[:nv, 2:] = np.where(vehicles_on[:, None], vehicle_velocities, 0.0)
-        state[nv:, :2] = np.where(pedestrians_on[:, None], pedestrian_positions, self._parking[nv:])
-        state[nv:, 2:] = np.where(pedestrians_on[:, None], pedestrian_velocities, 0.0)
+        substeps = _pack_bodies(
+            state,
+            self._parking,
+            np.ascontiguousarray(vehicle_positions, dtype=np.float64),
+            np.ascontiguousarray(vehicle_velocities, dtype=np.float64),
+            vehicles_on,
+            pedestrian_positions,
+            pedestrian_velocities,
+            pedestrians_on,
+            dt,
+            self._half_diagonal,
+            max_displacement,
+        )
         self._set_buffer.set_float_buf(state.reshape(-1))
         pymunk.batch.set_space_bodies(self.space, self._fields, self._set_buffer)
-        substeps = 1
-        if pedestrians_on.any() and self._contact_possible(state, vehicles_on, pedestrians_on, dt):
-            fastest = float(np.abs(state[:, 2:]).max()) * math.sqrt(2.0)
-            substeps = max(1, math.ceil(fastest * dt / max_displacement))
         self.contacts.clear()
         h = dt / substeps
         for _ in range(substeps):
@@ -174,24 +169,47 @@ class PhysicsWorld:
 
 
 @njit(cache=True, nogil=True)
-def _any_car_within_reach(
+def _pack_bodies(
     state: FloatArray,
-    num_vehicles: int,
+    parking: FloatArray,
+    vehicle_positions: FloatArray,
+    vehicle_velocities: FloatArray,
     vehicles_on: BoolArray,
+    pedestrian_positions: FloatArray,
+    pedestrian_velocities: FloatArray,
     pedestrians_on: BoolArray,
     dt: float,
     half_diagonal: float,
-) -> bool:
-    """`_contact_possible` over the body state rows (x, y, vx, vy): vehicles first, then pedestrians."""
-    for c in range(num_vehicles):
+    max_displacement: float,
+) -> int:
+    """Fill the body state rows (x, y, vx, vy; vehicles first, free slots parked) and count substeps.
+
+    One substep is exact enough unless some car could reach some pedestrian within the step —
+    conservatively, within its box grown by the distance both bodies can travel in `dt` plus 1 m. Then the
+    step is split so that the fastest body moves at most `max_displacement` per substep (no tunnelling).
+    """
+    nv = vehicles_on.shape[0]
+    fastest = 0.0
+    for i in range(state.shape[0]):
+        on = vehicles_on[i] if i < nv else pedestrians_on[i - nv]
+        if not on:
+            state[i, 0], state[i, 1] = parking[i, 0], parking[i, 1]
+            state[i, 2] = state[i, 3] = 0.0
+            continue
+        pos, vel, k = (vehicle_positions, vehicle_velocities, i) if i < nv else (
+            pedestrian_positions, pedestrian_velocities, i - nv
+        )  # fmt: skip
+        state[i, 0], state[i, 1], state[i, 2], state[i, 3] = pos[k, 0], pos[k, 1], vel[k, 0], vel[k, 1]
+        fastest = max(fastest, abs(vel[k, 0]), abs(vel[k, 1]))
+    for c in range(nv):
         if not vehicles_on[c]:
             continue
         reach = (abs(state[c, 2]) + abs(state[c, 3])) * dt + 1.0 + 2.0 * dt + half_diagonal
-        for p in range(num_vehicles, state.shape[0]):
+        for p in range(nv, state.shape[0]):
             if (
-                pedestrians_on[p - num_vehicles]
+                pedestrians_on[p - nv]
                 and abs(state[c, 0] - state[p, 0]) < reach
                 and abs(state[c, 1] - state[p, 1]) < reach
             ):
-                return True
-    return False
+                return max(1, math.ceil(fastest * math.sqrt(2.0) * dt / max_displacement))
+    return 1
