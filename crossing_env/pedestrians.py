@@ -24,6 +24,8 @@ from crossing_env.types import BehaviourEvent, FloatArray, PedState
 
 # Plain ints for the hot path (IntEnum comparisons go through Python-level enum machinery).
 INACTIVE, APPROACHING, WAITING, CROSSING, LEAVING = (int(state) for state in PedState)
+HESITATES, TURNS_BACK = 1, 2
+"""Flags of the irrational acts a crossing pedestrian can start in a step."""
 
 HISTORY_INTERVAL = 0.4
 """Seconds between history samples: the ETH/UCY cadence trajectory predictors are trained on."""
@@ -305,17 +307,10 @@ class PedestrianPopulation:
             self.geometry.kerb_north,
         )
         # Each transition applies to the state held at the start of the step (one transition per step),
-        # because `arrived` refers to the waypoint of that state.
-        before = st.copy()
-        # APPROACHING → WAITING at the kerb.
-        for i in np.flatnonzero((before == APPROACHING) & arrived):
-            st[i] = WAITING
-            self.wait_time[i] = 0.0
-            self.turning_back[i] = False
+        # because `arrived` refers to the waypoint of that state. APPROACHING → WAITING at the kerb first.
+        before, waiting = _start_waiting(st, arrived, self.wait_time, self.turning_back, self.dt)
         # WAITING: decide.
-        waiting = np.flatnonzero((st == WAITING) & (before == WAITING))
         if waiting.size:
-            self.wait_time[waiting] += self.dt
             red = np.full(waiting.size, pedestrian_green is False)
             red &= ~self.jaywalker[waiting]  # the signal only governs the zebra
             gap = self.gaps(cars, waiting)
@@ -345,47 +340,45 @@ class PedestrianPopulation:
             self.accepted_gap[waiting[go]] = gap[go]
             for k in np.flatnonzero(go):
                 self._start_crossing(int(waiting[k]), bool(red[k]))
-        # CROSSING: irrational acts and arrival.
-        crossing = np.flatnonzero(before == CROSSING)
-        if crossing.size:
-            road_w = self.geometry.kerb_north - self.geometry.kerb_south
-            progress = (
-                np.where(
-                    self.side[crossing] > 0,
-                    self.position[crossing, 1] - self.geometry.kerb_south,
-                    self.geometry.kerb_north - self.position[crossing, 1],
-                )
-                / road_w
-            )
-            for k in np.flatnonzero(progress >= self.hesitate_at[crossing]):
-                i = int(crossing[k])
-                self.hesitate_at[i] = np.inf
-                self.hesitate_left[i] = self.rng.uniform(1.0, 2.5)
-                self._log(i, "hesitate")
-            for k in np.flatnonzero(progress >= self.turn_back_at[crossing]):
-                i = int(crossing[k])
-                self.turn_back_at[i] = np.inf
-                # Head back to the kerb it came from (its side is unchanged), wait there and re-decide.
-                self.state[i] = APPROACHING
-                self.turning_back[i] = True
-                start_kerb = self._kerb_y[0] if self.side[i] > 0 else self._kerb_y[1]
-                self.waypoint[i] = (self.position[i, 0], start_kerb)
-                self.desired_speed[i] = self.base_speed[i] * 1.2
-                self._log(i, "turn_back")
-            done = crossing[arrived[crossing] & (st[crossing] == CROSSING)]
-            st[done] = LEAVING
-            self.waypoint[done] = self.goal[done]
-            self.desired_speed[done] = self.base_speed[done]
-        self.hesitate_left = np.maximum(0.0, self.hesitate_left - self.dt)
-        # LEAVING → despawn at the goal or off the map.
-        leaving = (before == LEAVING) & arrived
-        x = self.position[:, 0]
-        off_map = (x < -5.0) | (x > self.scenario.road.length + 5.0)
-        gone = leaving | (off_map & (st != INACTIVE))
-        if gone.any():
-            st[gone] = INACTIVE
-            self.ids[gone] = -1
-            self.velocity[gone] = 0.0
+        # CROSSING: irrational acts (rare: Python handles them, drawing from the RNG in slot order).
+        acts = _crossing_acts(
+            before,
+            self.position,
+            self.side,
+            self.hesitate_at,
+            self.turn_back_at,
+            self.geometry.kerb_south,
+            self.geometry.kerb_north,
+        )
+        for i in np.flatnonzero(acts & HESITATES) if acts.any() else ():
+            self.hesitate_at[i] = np.inf
+            self.hesitate_left[i] = self.rng.uniform(1.0, 2.5)
+            self._log(i, "hesitate")
+        for i in np.flatnonzero(acts & TURNS_BACK) if acts.any() else ():
+            self.turn_back_at[i] = np.inf
+            # Head back to the kerb it came from (its side is unchanged), wait there and re-decide.
+            self.state[i] = APPROACHING
+            self.turning_back[i] = True
+            start_kerb = self._kerb_y[0] if self.side[i] > 0 else self._kerb_y[1]
+            self.waypoint[i] = (self.position[i, 0], start_kerb)
+            self.desired_speed[i] = self.base_speed[i] * 1.2
+            self._log(i, "turn_back")
+        # CROSSING → LEAVING past the far kerb; LEAVING → despawn at the goal or off the map.
+        _finish_transitions(
+            st,
+            before,
+            arrived,
+            self.waypoint,
+            self.goal,
+            self.desired_speed,
+            self.base_speed,
+            self.hesitate_left,
+            self.ids,
+            self.velocity,
+            self.position,
+            self.dt,
+            self.scenario.road.length,
+        )
 
     def _start_crossing(self, i: int, red: bool) -> None:
         self.state[i] = CROSSING
@@ -549,3 +542,92 @@ def _gaps(
             elif speed[c] > 0.3:
                 out[k] = min(out[k], ahead / max(speed[c], 1e-3))
     return out
+
+
+@njit(cache=True, nogil=True)
+def _start_waiting(
+    state: np.ndarray, arrived: np.ndarray, wait_time: FloatArray, turning_back: np.ndarray, dt: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """APPROACHING → WAITING for arrivals; returns the states before and the slots still waiting.
+
+    Those waiting since an earlier step have their waiting time advanced by `dt`.
+    """
+    before = state.copy()
+    still = 0
+    for i in range(state.shape[0]):
+        if before[i] == APPROACHING and arrived[i]:
+            state[i] = WAITING
+            wait_time[i] = 0.0
+            turning_back[i] = False
+        elif before[i] == WAITING:
+            still += 1
+    waiting = np.empty(still, dtype=np.int64)
+    k = 0
+    for i in range(state.shape[0]):
+        if before[i] == WAITING:
+            wait_time[i] += dt
+            waiting[k] = i
+            k += 1
+    return before, waiting
+
+
+@njit(cache=True, nogil=True)
+def _crossing_acts(
+    before: np.ndarray,
+    position: FloatArray,
+    side: np.ndarray,
+    hesitate_at: FloatArray,
+    turn_back_at: FloatArray,
+    kerb_south: float,
+    kerb_north: float,
+) -> np.ndarray:
+    """(n,) flags: `HESITATES` / `TURNS_BACK` where a crossing pedestrian reaches that act's road fraction.
+
+    Only slots crossing since before this step count.
+    """
+    acts = np.zeros(before.shape[0], dtype=np.int8)
+    road_width = kerb_north - kerb_south
+    for i in range(before.shape[0]):
+        if before[i] != CROSSING:
+            continue
+        walked = position[i, 1] - kerb_south if side[i] > 0 else kerb_north - position[i, 1]
+        progress = walked / road_width
+        if progress >= hesitate_at[i]:
+            acts[i] |= HESITATES
+        if progress >= turn_back_at[i]:
+            acts[i] |= TURNS_BACK
+    return acts
+
+
+@njit(cache=True, nogil=True)
+def _finish_transitions(
+    state: np.ndarray,
+    before: np.ndarray,
+    arrived: np.ndarray,
+    waypoint: FloatArray,
+    goal: FloatArray,
+    desired_speed: FloatArray,
+    base_speed: FloatArray,
+    hesitate_left: FloatArray,
+    ids: np.ndarray,
+    velocity: FloatArray,
+    position: FloatArray,
+    dt: float,
+    road_length: float,
+) -> None:
+    """The step's last transitions, and hesitation timers run down.
+
+    CROSSING → LEAVING past the far kerb (unless it just turned back); LEAVING → INACTIVE at the goal;
+    anyone off the map → INACTIVE.
+    """
+    for i in range(state.shape[0]):
+        if before[i] == CROSSING and arrived[i] and state[i] == CROSSING:
+            state[i] = LEAVING
+            waypoint[i, 0], waypoint[i, 1] = goal[i, 0], goal[i, 1]
+            desired_speed[i] = base_speed[i]
+        hesitate_left[i] = max(0.0, hesitate_left[i] - dt)
+        off_map = position[i, 0] < -5.0 or position[i, 0] > road_length + 5.0
+        if (before[i] == LEAVING and arrived[i]) or (off_map and state[i] != INACTIVE):
+            state[i] = INACTIVE
+            ids[i] = -1
+            velocity[i, 0] = velocity[i, 1] = 0.0
