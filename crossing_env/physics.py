@@ -67,9 +67,10 @@ class PhysicsWorld:
         self.vehicle_shapes: list[pymunk.Poly] = []
         self.pedestrian_shapes: list[pymunk.Circle] = []
         length, width = vehicle_size
-        self._half_diagonal = (
-            0.5 * math.hypot(length, width) + 0.5
-        )  # car half-diagonal plus a pedestrian radius
+        self._half_extent = np.tile([length / 2, width / 2], (vehicle_capacity, 1))
+        """(V, 2) half length and half width of each vehicle box (for the substep test)."""
+        self._radius = np.full(pedestrian_capacity, 0.3)
+        """(P,) radius of each pedestrian circle (for the substep test)."""
         for i in range(vehicle_capacity):
             body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
             body.position = (_PARK_X - 20.0 * i, -1000.0)
@@ -109,10 +110,12 @@ class PhysicsWorld:
         shape = self.vehicle_shapes[slot]
         hl, hw = length / 2, width / 2
         shape.unsafe_set_vertices([(-hl, -hw), (hl, -hw), (hl, hw), (-hl, hw)])
+        self._half_extent[slot] = (hl, hw)
 
     def set_pedestrian_radius(self, slot: int, radius: float) -> None:
         """Resize a pedestrian's circle."""
         self.pedestrian_shapes[slot].unsafe_set_radius(radius)
+        self._radius[slot] = radius
 
     def _sync_filters(self, vehicles_on: BoolArray, pedestrians_on: BoolArray) -> None:
         """Switch collisions on for slots that became active and off for freed slots (rare)."""
@@ -152,7 +155,8 @@ class PhysicsWorld:
             pedestrian_velocities,
             pedestrians_on,
             dt,
-            self._half_diagonal,
+            self._half_extent,
+            self._radius,
             max_displacement,
         )
         self._set_buffer.set_float_buf(state.reshape(-1))
@@ -179,14 +183,16 @@ def _pack_bodies(
     pedestrian_velocities: FloatArray,
     pedestrians_on: BoolArray,
     dt: float,
-    half_diagonal: float,
+    half_extent: FloatArray,
+    radius: FloatArray,
     max_displacement: float,
 ) -> int:
     """Fill the body state rows (x, y, vx, vy; vehicles first, free slots parked) and count substeps.
 
-    One substep is exact enough unless some car could reach some pedestrian within the step —
-    conservatively, within its box grown by the distance both bodies can travel in `dt` plus 1 m. Then the
-    step is split so that the fastest body moves at most `max_displacement` per substep (no tunnelling).
+    One substep is exact enough unless some car could touch some pedestrian within the step: per axis,
+    the centres closer than the car's half extent, the pedestrian's radius, what both bodies travel in
+    `dt`, and a 1 m margin. Then the step is split so that the fastest body
+    moves at most `max_displacement` per substep (no tunnelling).
     """
     nv = vehicles_on.shape[0]
     fastest = 0.0
@@ -204,12 +210,14 @@ def _pack_bodies(
     for c in range(nv):
         if not vehicles_on[c]:
             continue
-        reach = (abs(state[c, 2]) + abs(state[c, 3])) * dt + 1.0 + 2.0 * dt + half_diagonal
+        reach_x = half_extent[c, 0] + abs(state[c, 2]) * dt + 1.0
+        reach_y = half_extent[c, 1] + abs(state[c, 3]) * dt + 1.0
         for p in range(nv, state.shape[0]):
+            k = p - nv
             if (
-                pedestrians_on[p - nv]
-                and abs(state[c, 0] - state[p, 0]) < reach
-                and abs(state[c, 1] - state[p, 1]) < reach
+                pedestrians_on[k]
+                and abs(state[c, 0] - state[p, 0]) < reach_x + radius[k] + abs(state[p, 2]) * dt
+                and abs(state[c, 1] - state[p, 1]) < reach_y + radius[k] + abs(state[p, 3]) * dt
             ):
                 return max(1, math.ceil(fastest * math.sqrt(2.0) * dt / max_displacement))
     return 1
