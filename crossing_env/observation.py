@@ -69,7 +69,7 @@ class ObservationBuilder:
         self.scenario = scenario
         self.config = config
         self.space = observation_space(config)
-        self.ped_range = config.perception_range * (0.5 if scenario.night else 1.0)
+        self.ped_range = float(config.perception_range) * (0.5 if scenario.night else 1.0)
         self.last_slots = np.full(config.max_pedestrians, -1, dtype=np.int64)
         """Pool slot shown in each pedestrian observation slot at the last call (−1 = empty)."""
         self._bounds = {key: (box.low.reshape(-1), box.high.reshape(-1)) for key, box in self.space.items()}

@@ -82,7 +82,7 @@ class PedestrianPopulation:
         self.geometry = geometry
         self.decision_model = decision_model
         self.rng = rng
-        self.dt = dt
+        self.dt = float(dt)
         steps = HISTORY_INTERVAL / dt
         if abs(steps - round(steps)) > 1e-9 or round(steps) < 1:
             raise ValueError(f"dt={dt} must divide the {HISTORY_INTERVAL} s history interval")
@@ -377,7 +377,7 @@ class PedestrianPopulation:
             self.velocity,
             self.position,
             self.dt,
-            self.scenario.road.length,
+            float(self.scenario.road.length),
         )
 
     def _start_crossing(self, i: int, red: bool) -> None:

@@ -75,7 +75,7 @@ class RoadGeometry:
         self.lane_y = np.array([lane.start[1] for lane in self.lanes], dtype=np.float64)
         self.lane_direction = np.array([1.0 if i < n_fwd else -1.0 for i in range(road.num_lanes)])
         self.kerb_south = 0.0
-        self.kerb_north = road.road_width
+        self.kerb_north = float(road.road_width)
         self.sidewalk_south = Rect(0.0, road.length, -road.sidewalk_width, 0.0)
         self.sidewalk_north = Rect(0.0, road.length, road.road_width, road.road_width + road.sidewalk_width)
         half = crossing.width / 2

@@ -40,7 +40,7 @@ class World:
         self.scenario = scenario
         self.config = config or EnvConfig()
         self.rng = rng
-        self.dt = self.config.dt
+        self.dt = float(self.config.dt)
         self.time = 0.0
         self.geometry = RoadGeometry(scenario.road, scenario.crossing)
         self.traffic = Traffic(scenario, self.geometry, rng)
