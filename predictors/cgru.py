@@ -51,6 +51,7 @@ class ComplexGRUCell(nn.Module):
         self.u_cand_im = nn.Parameter(torch.empty(h, h))
         self.modrelu_bias = nn.Parameter(torch.zeros(h))
         self.gate_mix = nn.Parameter(torch.zeros(2))  # sigmoid(0) = 0.5: equal weight to Re and Im
+        self.register_buffer("_eps", torch.tensor(1e-8), persistent=False)  # modulus guard, not saved
         self.reset_parameters()
 
     def reset_parameters(self) -> None:
@@ -119,10 +120,11 @@ class ComplexGRUCell(nn.Module):
         n = x.shape[0]
         xw = torch.addmm(b_x, x, w_x)  # (N, 4h): [mixed r, mixed z, cand re, cand im]
         gates = torch.sigmoid(torch.addmm(xw[:, : 2 * h], state, u_g))
-        s2 = state.view(n, 2, h)
+        s2 = state.reshape(n, 2, h)
         rh = (s2 * gates[:, None, :h]).view(n, 2 * h)  # r scales Re and Im alike
         c = torch.addmm(xw[:, 2 * h :], rh, u_c).view(n, 2, h)
-        mag = torch.sqrt(c.square().sum(1) + 1e-8)  # (N, h) modulus (eps as in the unfused form)
+        re, im = c[:, 0], c[:, 1]
+        mag = torch.addcmul(self._eps, re, re).addcmul_(im, im).sqrt_()  # sqrt(re² + im² + 1e-8), (N, h)
         scale = torch.relu(mag + self.modrelu_bias) / mag
         cand = c * scale[:, None, :]
         return torch.lerp(s2, cand, gates[:, None, h:]).view(n, 2 * h)  # (1 - z) h + z cand

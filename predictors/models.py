@@ -9,8 +9,11 @@ Pooling (vectorised; no per-pedestrian Python loop): all ordered pairs ``(i, j)`
 same window are built once per batch; at each step the offsets ``p_j - p_i`` are optionally rotated into the
 frame of ``i``'s last velocity, masked to the field-of-view sector ``|atan2(y, x)| <= fov / 2``, binned into a
 ``G x G`` grid of side ``neighborhood`` metres centred on ``i`` and the neighbours' states are summed into
-their cells with ``index_add_``. Near-stationary pedestrians keep their previous heading; a pedestrian whose
-heading has never been defined pools over the full grid (prediction.md §3, FoV pitfall).
+their cells with ``index_add_`` (:meth:`SocialRecurrent.social_pool`). The rollout never builds that mostly
+empty tensor: it applies the pooling embedding to each neighbour's state with its cell's weight slice
+(:meth:`SocialRecurrent.pooled_embedding`, equal by linearity) and bins all observed steps at once.
+Near-stationary pedestrians keep their previous heading; a pedestrian whose heading has never been defined
+pools over the full grid (prediction.md §3, FoV pitfall).
 
 Departures from the papers: Social-LSTM (Alahi et al. 2016) pools in an axis-aligned world-frame grid; we
 keep that for S-LSTM/S-GRU (``pool_frame="world"``) but S-CGRU pools in the heading frame, which is what a
@@ -30,6 +33,8 @@ from predictors.cgru import ComplexGRUCell
 from predictors.data import OBS_LEN, PRED_LEN
 
 MODEL_KINDS: tuple[str, ...] = ("s-cgru", "s-gru", "s-lstm", "lstm")
+PoolGroups = tuple[torch.Tensor, torch.Tensor, torch.Tensor, int] | None
+"""One step's pooling layout ``(i, j, slot, most)`` from :meth:`SocialRecurrent.pool_groups`."""
 
 
 @dataclass(frozen=True)
@@ -172,29 +177,35 @@ class SocialRecurrent(nn.Module):
         pos: torch.Tensor,
         heading: torch.Tensor,
         heading_ok: torch.Tensor,
-        pairs: tuple[torch.Tensor, torch.Tensor],
+        pairs: tuple[torch.Tensor, torch.Tensor] | torch.Tensor,
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """The pairs ``(i, j)`` whose neighbour ``j`` falls in ``i``'s grid (and sector), and its cell index."""
+        """The pairs ``(i, j)`` with ``j`` in ``i``'s grid (and sector), and the cell ``j`` falls in.
+
+        ``pairs``: ``(i, j)`` or the same stacked as one ``(2, P)`` tensor (what :meth:`rollout` passes, so
+        both ends are gathered in one indexing op). In the heading frame the offset is rotated as the
+        complex product ``(p_j - p_i) * conj(u_i)`` (real part ``d . u``, imaginary part ``u x d``) and the
+        sector test uses its argument: one complex multiply and one ``angle`` instead of a dozen real ops.
+        """
         c = self.config
-        i, j = pairs
+        ij = pairs if isinstance(pairs, torch.Tensor) else torch.stack(pairs)
         g = c.grid_size
-        d = pos[j] - pos[i]
+        ends = pos.index_select(0, ij.reshape(-1)).view(2, -1, 2)  # (2, P, 2); index_select: cheaper than []
+        d = ends[1] - ends[0]
         if c.pool_frame == "heading":
-            u = heading[i]
-            x = d[:, 0] * u[:, 0] + d[:, 1] * u[:, 1]
-            y = u[:, 0] * d[:, 1] - u[:, 1] * d[:, 0]
-            xy = torch.stack([x, y], dim=1)
-        else:
-            xy = d
+            z = torch.view_as_complex(d) * torch.view_as_complex(heading).index_select(0, ij[0]).conj()
+            xy = torch.view_as_real(z)
         half, cell = 0.5 * c.neighborhood, c.neighborhood / g
-        cxy = torch.floor((xy + half) / cell)  # same arithmetic per coordinate as a separate x and y
-        inside = ((cxy >= 0) & (cxy < g)).all(dim=1)
+        cxy = torch.floor((xy if c.pool_frame == "heading" else d).add(half).div_(cell))
+        inside = (cxy == cxy.clamp(0, g - 1)).all(dim=1)  # both cell coordinates in 0 .. g-1
         if c.fov_deg < 360.0:
-            in_fov = torch.atan2(xy[:, 1], xy[:, 0]).abs() <= math.radians(c.fov_deg) / 2.0
-            inside &= in_fov | ~heading_ok[i]
+            limit = torch.where(
+                heading_ok, math.radians(c.fov_deg) / 2.0, 4.0
+            )  # 4 > pi: no heading, no sector
+            inside &= torch.angle(z).abs() <= limit.index_select(0, ij[0])
         keep = torch.nonzero(inside).squeeze(1)
-        cxy = cxy[keep]
-        return i[keep], j[keep], (cxy[:, 1] * g + cxy[:, 0]).long()
+        kept = ij.index_select(1, keep)
+        cxy = cxy.index_select(0, keep)
+        return kept[0], kept[1], (cxy[:, 1] * g + cxy[:, 0]).long()
 
     def social_pool(
         self,
@@ -217,43 +228,75 @@ class SocialRecurrent(nn.Module):
         return out.view(n, g * g * state.shape[1])
 
     def pool_weights(self) -> torch.Tensor:
-        """``pool_embed``'s weight as one ``(H, E)`` matrix per grid cell, ``(G*G, H, E)``; once per rollout."""
+        """``pool_embed``'s weight as one ``(H, E)`` matrix per grid cell, ``(G*G, H, E)``; per rollout."""
         c = self.config
         gg = c.grid_size * c.grid_size
         return self.pool_embed.weight.view(c.embed_size, gg, c.hidden_size).permute(1, 2, 0).contiguous()
 
+    def pool_groups(self, cells: tuple[torch.Tensor, torch.Tensor, torch.Tensor]) -> PoolGroups:
+        """Pairs ``(i, j, cell)`` from :meth:`pool_cells` laid out for :meth:`pooled_embedding`.
+
+        Returns ``(i, j, slot, most)``: ``most`` is the largest number of pairs in one cell and ``slot =
+        cell * most + rank`` the pair's row in a ``(G*G, most)`` buffer, its rank among its cell's pairs
+        coming from a running count over a pair-by-cell indicator (no sort). ``None`` if there is no pair.
+        """
+        i, j, cell = cells
+        if cell.numel() == 0:
+            return None
+        gg = self.config.grid_size**2
+        running = (cell[:, None] == torch.arange(gg, device=cell.device)).cumsum(0)  # (P, G*G)
+        most = int(running[-1].max())
+        return i, j, running.gather(1, cell[:, None]).squeeze(1) + (cell * most - 1), most
+
     def pooled_embedding(
-        self,
-        pos: torch.Tensor,
-        heading: torch.Tensor,
-        heading_ok: torch.Tensor,
-        state: torch.Tensor,
-        pairs: tuple[torch.Tensor, torch.Tensor],
-        cell_weights: torch.Tensor,
+        self, state: torch.Tensor, groups: PoolGroups, cell_weights: torch.Tensor
     ) -> torch.Tensor:
         """``pool_embed(social_pool(...))`` ``(N, E)`` (before the ReLU) without the social tensor.
 
         Why: the social tensor ``(N, G*G*H)`` is mostly empty (a pedestrian has a few neighbours, spread
         over ``G*G`` cells), yet the dense form zero-fills it and multiplies all of it (as many
-        multiply-adds as an LSTM cell at ``H = 128``). By linearity ``pool_embed(S)_i = b + sum_j W_c(ij) h_j``
-        over the neighbours ``j`` of ``i``, so the neighbours' states are grouped by cell into a padded
-        ``(G*G, M, H)`` buffer (``M`` the most pairs in one cell) and multiplied with each cell's weight in
-        one batched matmul. Equal to the dense form up to float summation order. Shared by every model kind.
+        multiply-adds as an LSTM cell at ``H = 128``). By linearity ``pool_embed(S)_i = b + sum W_c h_j``
+        over the neighbours ``j`` of ``i`` (``c`` the cell of ``j``), so the neighbours' states are grouped
+        by cell (:meth:`pool_groups`) into a padded ``(G*G, M, H)`` buffer (``M`` the most pairs in one
+        cell) and multiplied with each cell's weight (:meth:`pool_weights`) in one batched matmul. Equal to
+        the dense form up to float summation order. Shared by every model kind.
         """
-        g = self.config.grid_size
-        gg = g * g
-        n = pos.shape[0]
-        out = self.pool_embed.bias.expand(n, -1).clone()
-        i, j, cell = self.pool_cells(pos, heading, heading_ok, pairs)
-        if cell.numel() == 0:
-            return out
-        counts = torch.bincount(cell, minlength=gg)
-        order = torch.argsort(cell, stable=True)
-        cell, i, j = cell[order], i[order], j[order]
-        rank = torch.arange(cell.numel(), device=cell.device) - (torch.cumsum(counts, 0) - counts)[cell]
-        buf = state.new_zeros(gg, int(counts.max()), state.shape[1])
-        buf[cell, rank] = state[j]
-        return out.index_add_(0, i, torch.bmm(buf, cell_weights)[cell, rank])
+        bias = self.pool_embed.bias.expand(state.shape[0], -1)
+        if groups is None:
+            return bias.clone()
+        i, j, slot, most = groups
+        gg, e = cell_weights.shape[0], cell_weights.shape[2]
+        buf = state.new_zeros(gg * most, state.shape[1]).index_copy_(0, slot, state.index_select(0, j))
+        per_pair = torch.bmm(buf.view(gg, most, -1), cell_weights).view(-1, e).index_select(0, slot)
+        return torch.index_add(bias, 0, i, per_pair)
+
+    def observed_pooling(
+        self,
+        obs: torch.Tensor,
+        heading: torch.Tensor,
+        ok: torch.Tensor,
+        pairs: tuple[torch.Tensor, torch.Tensor] | torch.Tensor,
+    ) -> list[PoolGroups]:
+        """:meth:`pool_groups` of the observed steps ``1 .. T-1`` of ``obs (N, T, 2)``, computed in one pass.
+
+        The geometry of the observed steps does not depend on the recurrent state, so all their pairs are
+        stacked (step ``t``'s pedestrians renumbered ``t * N + k``), binned at once, then split by step.
+        Generic (every pooling model), like the rest of :meth:`rollout`'s per-rollout preparation.
+        """
+        n, steps = obs.shape[0], obs.shape[1] - 1
+        ij = pairs if isinstance(pairs, torch.Tensor) else torch.stack(pairs)
+        off = (torch.arange(steps, device=obs.device) * n).repeat_interleave(ij.shape[1])
+        ci, cj, cell = self.pool_cells(
+            obs[:, 1:].transpose(0, 1).reshape(-1, 2),
+            heading[:, 1:].transpose(0, 1).reshape(-1, 2),
+            ok[:, 1:].t().reshape(-1),
+            ij.repeat(1, steps) + off,
+        )
+        step = torch.div(ci, n, rounding_mode="floor")
+        sizes = torch.bincount(step, minlength=steps).tolist()
+        base = step * n
+        split = (torch.split(ci - base, sizes), torch.split(cj - base, sizes), torch.split(cell, sizes))
+        return [self.pool_groups(c) for c in zip(*split, strict=True)]
 
     # ------------------------------------------------------------------ rollout
     def _hidden(self, state: tuple[torch.Tensor, ...]) -> torch.Tensor:
@@ -261,17 +304,14 @@ class SocialRecurrent(nn.Module):
 
     def _step(
         self,
-        rel: torch.Tensor,
-        pos: torch.Tensor,
-        heading: torch.Tensor,
-        heading_ok: torch.Tensor,
+        x: torch.Tensor,
+        groups: PoolGroups,
         state: tuple[torch.Tensor, ...],
-        pairs: tuple[torch.Tensor, torch.Tensor],
         weights: tuple[torch.Tensor, ...],
     ) -> tuple[torch.Tensor, ...]:
-        x = torch.relu(self.input_embed(rel))
+        """One recurrent step from the displacement embedding ``x`` (after ReLU) and the pooling layout."""
         if self.pooling:
-            soc = self.pooled_embedding(pos, heading, heading_ok, self._hidden(state), pairs, weights[0])
+            soc = self.pooled_embedding(self._hidden(state), groups, weights[0])
             x = torch.cat([x, torch.relu(soc)], dim=1)
         kind = self.config.kind
         if kind == "s-cgru":
@@ -288,6 +328,20 @@ class SocialRecurrent(nn.Module):
         moving = speed[:, 0] > self.config.min_speed
         new = torch.where(moving[:, None], rel / speed.clamp_min(1e-9), heading)
         return new, heading_ok | moving
+
+    def _headings(self, rel: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """:meth:`_update_heading` applied along ``rel (N, T, 2)`` from ``(1, 0)``, unrolled.
+
+        The heading at step ``t`` is the unit vector of the latest displacement faster than ``min_speed``
+        up to ``t`` (found with a running maximum over step indices), ``(1, 0)`` before any.
+        """
+        speed = rel.norm(dim=2, keepdim=True)
+        unit = rel / speed.clamp_min(1e-9)
+        steps = torch.arange(rel.shape[1], device=rel.device).expand(rel.shape[0], -1)
+        last = torch.where(speed[..., 0] > self.config.min_speed, steps, -1).cummax(dim=1).values
+        ok = last >= 0
+        heading = torch.gather(unit, 1, last.clamp_min(0)[..., None].expand(-1, -1, 2))
+        return torch.where(ok[..., None], heading, unit.new_tensor([1.0, 0.0])), ok
 
     def rollout(
         self,
@@ -313,7 +367,7 @@ class SocialRecurrent(nn.Module):
             the fed-back absolute positions (means, samples or the teacher).
         """
         n = obs.shape[0]
-        pairs = window_pairs(seq_start_end, n) if self.pooling else (torch.empty(0), torch.empty(0))
+        pairs = torch.stack(window_pairs(seq_start_end, n)) if self.pooling else torch.empty(2, 0)
         # Per-rollout weight preparation: per-cell pooling weights (all pooling models) and the S-CGRU's
         # folded matrices (see ComplexGRUCell.fused_weights).
         weights: tuple[torch.Tensor, ...] = (self.pool_weights(),) if self.pooling else (obs.new_empty(0),)
@@ -321,33 +375,47 @@ class SocialRecurrent(nn.Module):
             weights += self.cell.fused_weights()
         h0 = obs.new_zeros(n, self.config.hidden_size)
         state: tuple[torch.Tensor, ...] = (h0,) if self.config.kind in ("s-cgru", "s-gru") else (h0, h0)
-        heading = obs.new_zeros(n, 2)
-        heading[:, 0] = 1.0
-        heading_ok = torch.zeros(n, dtype=torch.bool, device=obs.device)
-        rel = obs.new_zeros(n, 2)
-        pos = obs[:, 0]
+        # The observed steps' inputs do not depend on the state: displacements, their embeddings, headings
+        # and pooling layouts are computed for all of them at once (generic; the same for every model).
+        rel_obs = torch.cat([obs.new_zeros(n, 1, 2), obs[:, 1:] - obs[:, :-1]], dim=1)
+        emb_obs = torch.relu(self.input_embed(rel_obs))
+        heading_obs, ok_obs = self._headings(rel_obs)
+        groups_obs: list[PoolGroups] = [None]  # step 0 pools all-zero states: the bias alone
+        if self.pooling:
+            groups_obs += self.observed_pooling(obs, heading_obs, ok_obs, pairs)
+        heading, heading_ok = heading_obs[:, -1], ok_obs[:, -1]
+        pos = obs[:, -1]
+        hidden_obs: list[torch.Tensor] = []
         outs: list[torch.Tensor] = []
         fed: list[torch.Tensor] = []
         for t in range(OBS_LEN + pred_len - 1):
-            if t > 0:
-                if t < OBS_LEN:
-                    new_pos = obs[:, t]
-                elif future is not None:
+            if t < OBS_LEN:
+                rel, x, groups = rel_obs[:, t], emb_obs[:, t], groups_obs[t] if self.pooling else None
+            else:
+                if future is not None:
                     new_pos = future[:, t - OBS_LEN]
                 elif generator is not None:
                     new_pos = pos + sample_gaussian(outs[-1], generator)
                 else:
                     new_pos = pos + outs[-1][:, :2]
                 rel, pos = new_pos - pos, new_pos
-                if t >= OBS_LEN:
-                    fed.append(pos)
+                fed.append(pos)
                 heading, heading_ok = self._update_heading(rel, heading, heading_ok)
-            state = self._step(rel, pos, heading, heading_ok, state, pairs, weights)
-            if t > 0:
+                x = torch.relu(self.input_embed(rel))
+                groups = None
+                if self.pooling:
+                    groups = self.pool_groups(self.pool_cells(pos, heading, heading_ok, pairs))
+            state = self._step(x, groups, state, weights)
+            if 0 < t < OBS_LEN - 1:  # nothing is fed back from these: one batched head after the loop
+                hidden_obs.append(self._hidden(state))
+            elif t > 0:
                 out = self.head(self._hidden(state))
                 if self.config.cv_residual:
-                    out = torch.cat([out[:, :2] + rel, out[:, 2:]], dim=1)
+                    out[:, :2] += rel
                 outs.append(out)
+        raw_obs = self.head(torch.stack(hidden_obs, dim=1))  # (N, OBS_LEN - 2, 5)
+        if self.config.cv_residual:
+            raw_obs = torch.cat([raw_obs[..., :2] + rel_obs[:, 1 : OBS_LEN - 1], raw_obs[..., 2:]], dim=-1)
         last = outs[-1]
         if future is not None:
             fed.append(future[:, -1])
@@ -355,7 +423,7 @@ class SocialRecurrent(nn.Module):
             fed.append(pos + sample_gaussian(last, generator))
         else:
             fed.append(pos + last[:, :2])
-        return torch.stack(outs, dim=1), torch.stack(fed, dim=1)
+        return torch.cat([raw_obs, torch.stack(outs, dim=1)], dim=1), torch.stack(fed, dim=1)
 
     def loss(
         self,

@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import pytest
 import torch
@@ -168,6 +169,22 @@ def test_models_train_sample_and_are_deterministic(kind: str) -> None:
             m.sample(obs, sse, 2, torch.Generator(), mode="magic")
 
 
+def test_unrolled_headings_equal_the_step_by_step_update() -> None:
+    m = SocialRecurrent(ModelConfig(kind="s-cgru", hidden_size=4, embed_size=4, pool_frame="heading"))
+    g = torch.Generator().manual_seed(5)
+    rel = torch.randn(6, 8, 2, generator=g) * 0.05  # about half the steps slower than min_speed
+    rel[:, 0] = 0.0
+    rel[0, 1:4] = 0.01  # pedestrian 0 has no heading before step 4
+    rel[1, 5:] = 0.0  # pedestrian 1 stops and keeps its heading
+    heading, ok = m._headings(rel)
+    h, o = torch.tensor([[1.0, 0.0]]).repeat(6, 1), torch.zeros(6, dtype=torch.bool)
+    for t in range(1, 8):
+        h, o = m._update_heading(rel[:, t], h, o)
+        torch.testing.assert_close(heading[:, t], h)
+        assert torch.equal(ok[:, t], o)
+    assert not bool(ok[:, 0].any()) and bool(ok.any()) and bool((~ok[:, 1]).any())
+
+
 def test_prediction_of_one_window_ignores_other_windows() -> None:
     obs, _, sse = _scene(2, seed=4)
     m = SocialRecurrent(default_config("s-cgru")).eval()
@@ -202,10 +219,114 @@ def test_numpy_fast_path_matches_torch(kind: str) -> None:
         obs, _, _ = _scene(1, seed=5)
         obs = obs * 0.5  # keep neighbours inside the 4 m grid so pooling matters
         ref = m.predict(obs, torch.tensor([[0, obs.shape[0]]])).numpy()
-    got = FastPredictor(m).predict(obs.numpy())
-    assert abs(got - ref).max() < 1e-4
+        alone = m.predict(obs[:1], torch.tensor([[0, 1]])).numpy()
+    fast = FastPredictor(m)
+    for predict in (fast.predict, fast.predict_numpy):  # compiled kernel and NumPy reference
+        assert abs(predict(obs.numpy()) - ref).max() < 1e-4
+        assert abs(predict(obs[:1].numpy()) - alone).max() < 1e-4  # a window of one
     # far-apart pedestrians: empty social tensors take the shortcut path
     far = obs * 50.0
     with torch.no_grad():
         ref_far = m.predict(far, torch.tensor([[0, far.shape[0]]])).numpy()
-    assert abs(FastPredictor(m).predict(far.numpy()) - ref_far).max() < 1e-3
+    for predict in (fast.predict, fast.predict_numpy):
+        assert abs(predict(far.numpy()) - ref_far).max() < 1e-3
+
+
+def _unfused_cell_step(cell: ComplexGRUCell, x: torch.Tensor, state: torch.Tensor) -> torch.Tensor:
+    """The cell's equations term by term (real and imaginary pre-activations kept apart), as first written."""
+    h = cell.hidden_size
+    ug, uc = cell.recurrent_blocks()
+    wx = cell.w(x)
+    wx_re, wx_im = wx[:, : 3 * h], wx[:, 3 * h :]
+    g = state @ ug
+    g_re, g_im = wx_re[:, : 2 * h] + g[:, : 2 * h], wx_im[:, : 2 * h] + g[:, 2 * h :]
+    a = torch.sigmoid(cell.gate_mix).repeat_interleave(h)
+    gates = torch.sigmoid(a * g_re + (1.0 - a) * g_im)
+    r, z = gates[:, :h], gates[:, h:]
+    c = (state * torch.cat([r, r], dim=1)) @ uc
+    c_re, c_im = wx_re[:, 2 * h :] + c[:, :h], wx_im[:, 2 * h :] + c[:, h:]
+    mag = torch.sqrt(c_re * c_re + c_im * c_im + 1e-8)
+    scale = torch.relu(mag + cell.modrelu_bias) / mag
+    z2 = torch.cat([z, z], dim=1)
+    return (1.0 - z2) * state + z2 * torch.cat([c_re * scale, c_im * scale], dim=1)
+
+
+def test_fused_complex_cell_equals_the_unfused_equations() -> None:
+    torch.manual_seed(2)
+    cell = ComplexGRUCell(12, 8)
+    with torch.no_grad():
+        cell.gate_mix.normal_(0.0, 1.0)  # unequal Re/Im mixing, so folding it into the matrices matters
+        cell.modrelu_bias.normal_(0.0, 0.3)
+        cell.w.bias.normal_(0.0, 0.3)
+    x, state = torch.randn(9, 12), torch.randn(9, 16)
+    want = _unfused_cell_step(cell, x, state)
+    torch.testing.assert_close(cell(x, state), want, atol=1e-5, rtol=1e-5)
+    torch.testing.assert_close(cell(x, state, cell.fused_weights()), want, atol=1e-5, rtol=1e-5)
+    # gradients flow to every parameter through the folded matrices, as through the unfused form
+    cell(x, state).square().sum().backward()
+    assert all(p.grad is not None and float(p.grad.abs().sum()) > 0.0 for p in cell.parameters())
+
+
+@pytest.mark.parametrize("frame", ["world", "heading"])
+def test_pooled_embedding_equals_dense_social_tensor(frame: str) -> None:
+    torch.manual_seed(3)
+    cfg = ModelConfig(
+        kind="s-gru",
+        hidden_size=6,
+        embed_size=5,
+        fov_deg=120.0 if frame == "heading" else 360.0,
+        pool_frame=frame,
+    )
+    m = SocialRecurrent(cfg)
+    obs, _, sse = _scene(4, seed=7)
+    pos = obs[:, -1] * 0.4  # close together: many neighbours, several in the same cell
+    heading = torch.nn.functional.normalize(torch.randn(pos.shape[0], 2), dim=1)
+    ok = torch.rand(pos.shape[0]) > 0.3
+    state = torch.randn(pos.shape[0], 6)
+    pairs = window_pairs(sse, pos.shape[0])
+    dense = m.pool_embed(m.social_pool(pos, heading, ok, state, pairs))
+    assert int((m.social_pool(pos, heading, ok, state, pairs) != 0).any(1).sum()) > 3  # pooling happens
+    groups = m.pool_groups(m.pool_cells(pos, heading, ok, pairs))
+    got = m.pooled_embedding(state, groups, m.pool_weights())
+    torch.testing.assert_close(got, dense, atol=1e-5, rtol=1e-5)
+    # nobody in anyone's grid: no layout, just the bias
+    assert m.pool_groups(m.pool_cells(pos * 100.0, heading, ok, pairs)) is None
+    far = m.pooled_embedding(state, None, m.pool_weights())
+    torch.testing.assert_close(far, m.pool_embed.bias.expand_as(far))
+    # the observed steps' layouts, built in one pass, equal the step-by-step ones
+    obs_h, obs_ok = m._headings(torch.cat([obs[:, :1] * 0.0, obs[:, 1:] - obs[:, :-1]], dim=1))
+    batched = m.observed_pooling(obs * 0.4, obs_h, obs_ok, pairs)
+    for t, b in enumerate(batched, start=1):
+        one = m.pool_groups(m.pool_cells(obs[:, t] * 0.4, obs_h[:, t], obs_ok[:, t], pairs))
+        assert (b is None) == (one is None)
+        if b is not None and one is not None:
+            torch.testing.assert_close(
+                m.pooled_embedding(state, b, m.pool_weights()),
+                m.pooled_embedding(state, one, m.pool_weights()),
+            )
+
+
+SHIPPED = Path(__file__).resolve().parents[1] / "predictors" / "weights"
+
+
+@pytest.mark.skipif(not (SHIPPED / "s-cgru_all.pt").is_file(), reason="shipped S-CGRU weights not built")
+def test_shipped_s_cgru_fast_path_matches_torch_model() -> None:
+    from predictors.fast_inference import FastPredictor
+    from predictors.train import load_model
+
+    m = load_model(SHIPPED / "s-cgru_all.pt")
+    g = torch.Generator().manual_seed(0)
+    start = torch.rand(12, 1, 2, generator=g) * 6.0
+    vel = (torch.rand(12, 1, 2, generator=g) - 0.5) * 0.8
+    obs = start + vel * torch.arange(8.0)[None, :, None]
+    x = torch.randn(12, m.cell.input_size, generator=g)
+    state = torch.randn(12, m.config.hidden_size, generator=g)
+    with torch.no_grad():
+        # the trained weights through the folded cell give the unfused equations' state
+        torch.testing.assert_close(
+            m.cell(x, state), _unfused_cell_step(m.cell, x, state), atol=1e-5, rtol=1e-5
+        )
+        ref = m.predict(obs, torch.tensor([[0, 12]])).numpy()
+    fast = FastPredictor(m)
+    assert abs(fast.predict(obs.numpy()) - ref).max() < 1e-4
+    assert abs(fast.predict_numpy(obs.numpy()) - ref).max() < 1e-4

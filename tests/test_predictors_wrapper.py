@@ -120,9 +120,86 @@ def test_unchanged_history_is_served_from_the_cache_identically() -> None:
     env = TrajectoryPrediction(base)
     env.reset(seed=0)
     obs = base._obs()
-    moved = {**obs, "pedestrian_history": obs["pedestrian_history"] + 0.3}
+    rng = np.random.default_rng(1)
+    moved = {**obs, "pedestrian_history": obs["pedestrian_history"] + rng.normal(0, 0.3, (K, 1, 2))}
     a = env.observation(obs)["predicted_paths"].copy()
+    hits = env.cache_hits
     b = env.observation(moved)["predicted_paths"].copy()
     c = env.observation(moved)["predicted_paths"]
     assert not np.array_equal(a, b)  # a new history gives a new prediction
     np.testing.assert_array_equal(b, c)
+    assert env.cache_hits == hits + 1
+
+
+@needs_weights
+@pytest.mark.parametrize("model", ["s-cgru", "s-lstm_eth", "cvm"])
+def test_translated_and_reordered_history_reuses_shifted_paths(model: str) -> None:
+    """The ego moved (a common translation) and the slots were re-sorted: the cached paths, reordered and
+    shifted, equal a fresh prediction (the models are translation- and permutation-equivariant)."""
+    chosen = model if model in ("s-cgru", "cvm") else WEIGHTS_DIR / f"{model}.pt"
+    base = FakePedEnv(n_present=K - 3)
+    env = TrajectoryPrediction(base, model=chosen)
+    env.reset(seed=0)
+    obs = base._obs()
+    obs["pedestrian_history"][: K - 3] *= 0.3  # a tight crowd, so the social pooling matters
+    first = env.observation(obs)["predicted_paths"].copy()
+    assert (env.cache_hits, env.cache_misses) == (0, 2)  # reset's observation, then this one
+    perm = np.r_[np.random.default_rng(0).permutation(K - 3), np.arange(K - 3, K)]
+    shift = np.array([-3.7, 1.25], np.float32)
+    moved = {
+        "pedestrians": obs["pedestrians"][perm],
+        "pedestrian_history": np.where(
+            obs["pedestrians"][perm, :1, None] > 0.5, obs["pedestrian_history"][perm] + shift, 0.0
+        ).astype(np.float32),
+    }
+    reused = env.observation(moved)["predicted_paths"]
+    assert env.cache_hits == 1
+    fresh = TrajectoryPrediction(FakePedEnv(n_present=K - 3), model=chosen).observation(moved)[
+        "predicted_paths"
+    ]
+    np.testing.assert_allclose(reused, fresh, atol=1e-4, rtol=0)
+    np.testing.assert_allclose(reused[: K - 3], first[perm[: K - 3]] + shift, atol=1e-5, rtol=0)
+    assert np.all(reused[K - 3 :] == 0.0)
+
+
+@needs_weights
+def test_changed_history_is_recomputed() -> None:
+    base = FakePedEnv(n_present=K)
+    env = TrajectoryPrediction(base)
+    env.reset(seed=0)
+    obs = base._obs()
+    a = env.observation(obs)["predicted_paths"].copy()
+    hits, misses = env.cache_hits, env.cache_misses
+    for change in (1e-3, 0.05):  # one pedestrian's newest sample moves: just above the tolerance, and more
+        hist = obs["pedestrian_history"].copy()
+        hist[3, -1] += change
+        hist += np.float32(2.0)  # plus a common translation, which alone would be reused
+        b = env.observation({**obs, "pedestrian_history": hist})["predicted_paths"]
+        fresh = TrajectoryPrediction(FakePedEnv(n_present=K)).observation({**obs, "pedestrian_history": hist})
+        np.testing.assert_allclose(b, fresh["predicted_paths"], atol=1e-4, rtol=0)
+        assert not np.allclose(b[3], a[3] + 2.0, atol=1e-5)
+    assert env.cache_misses == misses + 2 and env.cache_hits == hits
+    # a pedestrian leaving changes the window: recomputed too
+    fewer = {**obs, "pedestrians": obs["pedestrians"].copy()}
+    fewer["pedestrians"][5, 0] = 0.0
+    env.observation(fewer)
+    assert env.cache_misses == misses + 3
+
+
+def test_match_translated_rejects_ambiguous_and_accepts_exact() -> None:
+    from predictors.trajectory_wrapper import match_translated
+
+    rng = np.random.default_rng(3)
+    ref = rng.normal(size=(5, 8, 2)).astype(np.float32)
+    perm = np.array([2, 0, 4, 1, 3])
+    got = match_translated(ref[perm] + np.float32(7.5), ref)
+    assert got is not None
+    np.testing.assert_array_equal(got[0], perm)
+    np.testing.assert_allclose(got[1], [7.5, 7.5], atol=1e-5)
+    assert match_translated(ref[:4], ref) is None  # different count
+    twin = ref.copy()
+    twin[1] = twin[0]  # two identical histories: no unique reordering
+    assert match_translated(twin[[1, 0, 2, 3, 4]], twin) is not None  # identity still matches
+    bent = ref.copy()
+    bent[2, 3] += 2e-4
+    assert match_translated(bent, ref) is None
