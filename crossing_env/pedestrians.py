@@ -392,6 +392,14 @@ class PedestrianPopulation:
             self.desired_speed[i] = min(2.0 * self.base_speed[i], 3.5)
             self._log(i, "run")
 
+    def anyone_at_zebra(
+        self, crossing_position: float, crossing_width: float, on_crossing: np.ndarray
+    ) -> bool:
+        """Whether anyone waits by the crossing (jaywalkers aside) or is on it (`on_crossing`)."""
+        return _anyone_at_zebra(
+            self.state, self.crossing_x, self.jaywalker, on_crossing, crossing_position, crossing_width
+        )
+
     def irrational_now(self) -> np.ndarray:
         """(n,) visibly acting irrationally this step (what others can see and react to).
 
@@ -415,28 +423,19 @@ class PedestrianPopulation:
         self.force_intensity = updated_ped_intensity(self.config.social_force.ped_intensity, fraction)
 
     def _update_velocities(self, cars: CarSnapshot) -> None:
-        act = np.flatnonzero(self.active)
-        if act.size == 0:
-            return
-        st = self.state
-        # Waiting pedestrians keep walking towards their kerb point (the arrival slow-down makes them stand
-        # there); with no attraction, the kerb repulsion would push them back from the kerb.
-        v0 = np.where(self.hesitate_left > 0, 0.0, self.desired_speed)
-        # A waiting pedestrian stands at the kerb; only crossing pedestrians may be on the carriageway.
-        stay = (st != CROSSING) & ~((st == APPROACHING) & self.on_road())
         sf = self.config.social_force
-        walk_step(
-            act,
+        _walk_pool(
+            self.state,
+            self.hesitate_left,
+            self.desired_speed,
             self.position,
             self.velocity,
             self.waypoint,
-            v0,
             self.radius,
-            stay,
+            self.force_intensity,
             cars.boxes,
             self.geometry.kerb_south,
             self.geometry.kerb_north,
-            self.force_intensity,
             self.dt,
             sf.max_speed_factor,
             *model_parameters(sf),
@@ -448,6 +447,24 @@ class PedestrianPopulation:
         if self.step_count % self.history_every == 0:
             self.history[:, :-1] = self.history[:, 1:]
             self.history[:, -1] = self.position
+
+    def masks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """`(on_road(), on_crossing(), legal())` in one pass (the world refreshes them every step)."""
+        geo, rect = self.geometry, self.geometry.crossing_rect
+        return _geometric_masks(
+            self.state,
+            self.position,
+            geo.kerb_south,
+            geo.kerb_north,
+            geo.has_crossing,
+            float(rect.x_min),
+            float(rect.x_max),
+            float(rect.y_min),
+            float(rect.y_max),
+            self.scenario.crossing.kind == "none",
+            self.crossed_on_red,
+            self.jaywalker,
+        )
 
     def on_crossing(self) -> np.ndarray:
         """(n,) centre inside the zebra area."""
@@ -631,3 +648,96 @@ def _finish_transitions(
             state[i] = INACTIVE
             ids[i] = -1
             velocity[i, 0] = velocity[i, 1] = 0.0
+
+
+@njit(cache=True, nogil=True)
+def _walk_pool(
+    state: np.ndarray,
+    hesitate_left: FloatArray,
+    desired_speed: FloatArray,
+    position: FloatArray,
+    velocity: FloatArray,
+    waypoint: FloatArray,
+    radius: FloatArray,
+    force_intensity: FloatArray,
+    boxes: FloatArray,
+    kerb_south: float,
+    kerb_north: float,
+    dt: float,
+    max_speed_factor: float,
+    tau: float,
+    base: float,
+    ped_range: float,
+    vehicle_range: float,
+    vehicle_intensity: float,
+    lam: float,
+    kerb_strength: float,
+    kerb_range: float,
+) -> None:
+    """One social-force velocity step for every active slot, in place.
+
+    Hesitating pedestrians want to stand (v0 = 0); waiting ones keep walking towards their kerb point
+    (the arrival slow-down makes them stand there; with no attraction, the kerb repulsion would push them
+    back). Only crossing pedestrians may be on the carriageway: everyone else is held on the sidewalk.
+    """
+    rows = np.flatnonzero(state != INACTIVE)
+    if rows.shape[0] == 0:
+        return
+    v0 = np.where(hesitate_left > 0, 0.0, desired_speed)
+    stay = np.empty(state.shape[0], dtype=np.bool_)
+    for i in range(state.shape[0]):
+        on_road = kerb_south < position[i, 1] < kerb_north
+        stay[i] = state[i] != CROSSING and not (state[i] == APPROACHING and on_road)
+    walk_step(
+        rows, position, velocity, waypoint, v0, radius, stay, boxes, kerb_south, kerb_north, force_intensity,
+        dt, max_speed_factor, tau, base, ped_range, vehicle_range, vehicle_intensity, lam, kerb_strength,
+        kerb_range,
+    )  # fmt: skip
+
+
+@njit(cache=True, nogil=True)
+def _anyone_at_zebra(
+    state: np.ndarray,
+    crossing_x: FloatArray,
+    jaywalker: np.ndarray,
+    on_crossing: np.ndarray,
+    crossing_position: float,
+    crossing_width: float,
+) -> bool:
+    """`PedestrianPopulation.anyone_at_zebra` in one pass."""
+    for i in range(state.shape[0]):
+        if on_crossing[i] and state[i] != INACTIVE:
+            return True
+        waiting_here = state[i] == WAITING and abs(crossing_x[i] - crossing_position) < crossing_width
+        if waiting_here and not jaywalker[i]:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
+def _geometric_masks(
+    state: np.ndarray,
+    position: FloatArray,
+    kerb_south: float,
+    kerb_north: float,
+    has_crossing: bool,
+    x_min: float,
+    x_max: float,
+    y_min: float,
+    y_max: float,
+    no_crossing: bool,
+    crossed_on_red: np.ndarray,
+    jaywalker: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`PedestrianPopulation.masks`: on the carriageway, on the zebra, crossing legally (or off the road)."""
+    n = state.shape[0]
+    on_road, on_crossing, legal = np.zeros(n, np.bool_), np.zeros(n, np.bool_), np.ones(n, np.bool_)
+    for i in range(n):
+        if state[i] == INACTIVE:
+            continue
+        x, y = position[i, 0], position[i, 1]
+        on_road[i] = kerb_south < y < kerb_north
+        on_crossing[i] = has_crossing and x_min <= x <= x_max and y_min <= y <= y_max
+        if on_road[i]:
+            legal[i] = not no_crossing and on_crossing[i] and not crossed_on_red[i] and not jaywalker[i]
+    return on_road, on_crossing, legal

@@ -123,9 +123,8 @@ class PhysicsWorld:
             (self.vehicle_shapes, self._vehicle_on, vehicles_on),
             (self.pedestrian_shapes, self._pedestrian_on, pedestrians_on),
         ):
-            for i in np.flatnonzero(old != new):
+            for i in _sync_flags(old, new):
                 shapes[i].filter = _ALL if new[i] else _NONE
-            old[:] = new
 
     def step(
         self,
@@ -141,6 +140,7 @@ class PhysicsWorld:
         """Move every body for `dt` seconds and return pedestrian positions, velocities and new contacts.
 
         Vehicle positions are the ones at the start of the step; their velocities carry them through it.
+        Returned rows of pedestrians that are not on keep the values passed in.
         """
         self._sync_filters(vehicles_on, pedestrians_on)
         nv = self.num_vehicles
@@ -169,7 +169,8 @@ class PhysicsWorld:
         buf.clear()
         pymunk.batch.get_space_bodies(self.space, self._fields, buf)
         out = np.frombuffer(buf.float_buf(), dtype=np.float64).reshape(-1, 4)
-        return out[nv:, :2].copy(), out[nv:, 2:].copy(), list(self.contacts)
+        pos, vel = _unpack_pedestrians(out, nv, pedestrians_on, pedestrian_positions, pedestrian_velocities)
+        return pos, vel, list(self.contacts)
 
 
 @njit(cache=True, nogil=True)
@@ -221,3 +222,24 @@ def _pack_bodies(
             ):
                 return max(1, math.ceil(fastest * math.sqrt(2.0) * dt / max_displacement))
     return 1
+
+
+@njit(cache=True, nogil=True)
+def _sync_flags(old: BoolArray, new: BoolArray) -> np.ndarray:
+    """Slots where `new` differs from `old`; then `old` takes `new`'s values."""
+    changed = np.flatnonzero(old != new)
+    old[:] = new
+    return changed
+
+
+@njit(cache=True, nogil=True)
+def _unpack_pedestrians(
+    out: FloatArray, nv: int, pedestrians_on: BoolArray, positions: FloatArray, velocities: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """New (P, 2) position and velocity arrays: pymunk's rows for pedestrians that are on, else the old."""
+    pos, vel = positions.copy(), velocities.copy()
+    for k in range(pedestrians_on.shape[0]):
+        if pedestrians_on[k]:
+            pos[k, 0], pos[k, 1] = out[nv + k, 0], out[nv + k, 1]
+            vel[k, 0], vel[k, 1] = out[nv + k, 2], out[nv + k, 3]
+    return pos, vel

@@ -87,11 +87,11 @@ class Traffic:
 
     def boxes(self, mask: np.ndarray | None = None) -> FloatArray:
         """(k, 4) axis-aligned boxes [x_min, y_min, x_max, y_max] of the selected (default: active) slots."""
-        m = self.active if mask is None else mask
-        x, y, hl, hw = self.x[m], self.y[m], self.length[m] / 2, self.width[m] / 2
-        out = np.empty((x.size, 4))
-        out[:, 0], out[:, 1], out[:, 2], out[:, 3] = x - hl, y - hw, x + hl, y + hw
-        return out
+        return _boxes(self.x, self.y, self.length, self.width, self.active if mask is None else mask)
+
+    def moving(self) -> tuple[FloatArray, np.ndarray, FloatArray, FloatArray, FloatArray]:
+        """(x, lane, direction, speed, half length) of the active, not parked slots, in slot order."""
+        return _moving(self.x, self.lane, self.direction, self.speed, self.length, self.active, self.parked)
 
     # ------------------------------------------------------------------ spawning
     def spawn(self, spawn: VehicleSpawn) -> int | None:
@@ -137,22 +137,20 @@ class Traffic:
     def background_accelerations(
         self,
         ped_positions: FloatArray,
-        ped_waiting_x: FloatArray,
-        ped_on_crossing_x: FloatArray,
+        ped_on_road: np.ndarray,
+        pedestrians_at_zebra: bool,
         cars_must_stop: bool,
     ) -> FloatArray:
         """IDM accelerations of all slots (the ego's entry is ignored by the caller).
 
         Args:
-            ped_positions: (P, 2) pedestrians on the carriageway (obstacles in their lane).
-            ped_waiting_x: (W, 2) positions of pedestrians waiting at the kerb of the crossing.
-            ped_on_crossing_x: (Q, 2) positions of pedestrians on the crossing.
+            ped_positions: (P, 2) pedestrian positions.
+            ped_on_road: (P,) those on the carriageway (obstacles in their lane).
+            pedestrians_at_zebra: someone waits at the kerb of the crossing or is on it.
             cars_must_stop: the signal shows red to cars.
         """
         # Stop line: red signal for everyone, pedestrians at the zebra for yielders.
-        yield_now = self.scenario.crossing.kind == "zebra" and (
-            ped_waiting_x.shape[0] > 0 or ped_on_crossing_x.shape[0] > 0
-        )
+        yield_now = self.scenario.crossing.kind == "zebra" and pedestrians_at_zebra
         geo = self.geometry
         stop_lines = geo.has_crossing and (cars_must_stop or yield_now)
         return _background_accelerations(
@@ -165,7 +163,8 @@ class Traffic:
             self.active,
             self.parked,
             self.yields,
-            np.ascontiguousarray(ped_positions, dtype=np.float64).reshape(-1, 2),
+            ped_positions,
+            ped_on_road,
             float(geo.road.lane_width),
             int(geo.road.num_lanes),
             bool(stop_lines),
@@ -175,25 +174,30 @@ class Traffic:
             *idm_parameters(self.config.idm),
         )
 
-    def advance(self, acceleration: FloatArray, dt: float, ego_max_speed: float) -> FloatArray:
-        """Integrate speeds and positions (trapezoidal, no reversing); returns the per-slot displacement."""
-        speed = np.maximum(0.0, self.speed + acceleration * dt)
-        speed[0] = min(speed[0], ego_max_speed)
-        speed[self.parked | ~self.active] = 0.0
-        # The acceleration actually realised (clipped at standstill), for metrics.
-        self.acceleration = (speed - self.speed) / dt
-        dx = 0.5 * (self.speed + speed) * dt * self.direction
-        self.x = self.x + dx
-        self.speed = speed
-        return dx
+    def advance(
+        self, acceleration: FloatArray, dt: float, ego_max_speed: float
+    ) -> tuple[FloatArray, FloatArray]:
+        """Integrate speeds and positions (trapezoidal, no reversing).
+
+        Returns the (n, 2) positions at the start of the step and the (n, 2) mean velocities over it (what
+        carries the kinematic bodies to the new positions in the physics step).
+        """
+        start, velocity, self.x, self.speed, self.acceleration = _advance(
+            self.x,
+            self.y,
+            self.speed,
+            self.direction,
+            self.active,
+            self.parked,
+            acceleration,
+            dt,
+            ego_max_speed,
+        )
+        return start, velocity
 
     def despawn_finished(self) -> None:
-        """Remove background cars that have left the road."""
-        length = self.geometry.road.length
-        out = self.active & ((self.x < -10.0) | (self.x > length + 10.0))
-        out[0] = False
-        self.active[out] = False
-        self.ids[out] = -1
+        """Remove background cars that have left the road (10 m past either end)."""
+        _despawn(self.x, self.active, self.ids, float(self.geometry.road.length))
 
 
 @njit(cache=True, nogil=True)
@@ -208,6 +212,7 @@ def _background_accelerations(
     parked: np.ndarray,
     yields: np.ndarray,
     ped_positions: FloatArray,
+    ped_on_road: np.ndarray,
     lane_width: float,
     num_lanes: int,
     stop_lines: bool,
@@ -247,6 +252,8 @@ def _background_accelerations(
                     gap, lead_speed = bumper, speed[j]
         # Pedestrians on the carriageway in the car's lane ahead.
         for k in range(ped_positions.shape[0]):
+            if not ped_on_road[k]:
+                continue
             ped_lane = min(max(int(ped_positions[k, 1] / lane_width), 0), num_lanes - 1)
             dist = ped_positions[k, 0] * d - s - half - 0.5
             if ped_lane == lane[i] and -half < dist < PEDESTRIAN_LOOKAHEAD:
@@ -264,3 +271,75 @@ def _background_accelerations(
             speed[i], desired_speed[i], gap, lead_speed, a, b, max_deceleration, time_headway, min_gap, delta
         )
     return acc
+
+
+@njit(cache=True, nogil=True)
+def _boxes(
+    x: FloatArray, y: FloatArray, length: FloatArray, width: FloatArray, mask: np.ndarray
+) -> FloatArray:
+    """(k, 4) boxes [x_min, y_min, x_max, y_max] of the masked slots."""
+    rows = np.flatnonzero(mask)
+    out = np.empty((rows.shape[0], 4))
+    for k in range(rows.shape[0]):
+        i = rows[k]
+        hl, hw = length[i] / 2, width[i] / 2
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = x[i] - hl, y[i] - hw, x[i] + hl, y[i] + hw
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _moving(
+    x: FloatArray,
+    lane: np.ndarray,
+    direction: FloatArray,
+    speed: FloatArray,
+    length: FloatArray,
+    active: np.ndarray,
+    parked: np.ndarray,
+) -> tuple[FloatArray, np.ndarray, FloatArray, FloatArray, FloatArray]:
+    """`Traffic.moving` without a numpy call per field."""
+    rows = np.flatnonzero(active & ~parked)
+    return x[rows], lane[rows], direction[rows], speed[rows], length[rows] / 2
+
+
+@njit(cache=True, nogil=True)
+def _advance(
+    x: FloatArray,
+    y: FloatArray,
+    speed: FloatArray,
+    direction: FloatArray,
+    active: np.ndarray,
+    parked: np.ndarray,
+    acceleration: FloatArray,
+    dt: float,
+    ego_max_speed: float,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:
+    """`Traffic.advance`: (start positions, mean velocities, new x, new speed, realised acceleration).
+
+    Parked and free slots stand still; the ego (slot 0) is capped at its maximum speed. The realised
+    acceleration is clipped at standstill (no reversing), for metrics.
+    """
+    n = x.shape[0]
+    start, velocity = np.empty((n, 2)), np.zeros((n, 2))
+    new_x, new_speed, realised = np.empty(n), np.empty(n), np.empty(n)
+    for i in range(n):
+        v = max(0.0, speed[i] + acceleration[i] * dt)
+        if i == 0:
+            v = min(v, ego_max_speed)
+        if parked[i] or not active[i]:
+            v = 0.0
+        realised[i] = (v - speed[i]) / dt
+        new_x[i] = x[i] + 0.5 * (speed[i] + v) * dt * direction[i]
+        new_speed[i] = v
+        start[i, 0], start[i, 1] = x[i], y[i]
+        velocity[i, 0] = (new_x[i] - x[i]) / dt
+    return start, velocity, new_x, new_speed, realised
+
+
+@njit(cache=True, nogil=True)
+def _despawn(x: FloatArray, active: np.ndarray, ids: np.ndarray, road_length: float) -> None:
+    """`Traffic.despawn_finished` in place; the ego (slot 0) always stays."""
+    for i in range(1, x.shape[0]):
+        if active[i] and (x[i] < -10.0 or x[i] > road_length + 10.0):
+            active[i] = False
+            ids[i] = -1

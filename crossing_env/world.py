@@ -8,6 +8,7 @@ Gymnasium. The env turns its state into observations and rewards; metrics and re
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from crossing_env.config import EnvConfig, ScenarioConfig
 from crossing_env.decisions import CrossingDecisionModel, GapAcceptance
@@ -15,7 +16,7 @@ from crossing_env.pedestrians import WAITING, CarSnapshot, PedestrianPopulation
 from crossing_env.physics import PhysicsWorld
 from crossing_env.road import RoadGeometry
 from crossing_env.traffic import Traffic
-from crossing_env.types import CollisionEvent, GroundTruth
+from crossing_env.types import CollisionEvent, FloatArray, GroundTruth
 
 
 def make_decision_model(scenario: ScenarioConfig) -> CrossingDecisionModel:
@@ -66,25 +67,20 @@ class World:
 
     def _refresh_masks(self) -> None:
         """Per-pedestrian geometric masks, computed once per step for traffic, observation and truth."""
-        peds = self.pedestrians
-        self.ped_on_road = peds.on_road()
-        """(n,) active and on the carriageway."""
-        self.ped_on_crossing = peds.on_crossing()
-        """(n,) active and inside the zebra area."""
-        self.ped_legal = peds.legal(self.ped_on_road, self.ped_on_crossing)
-        """(n,) not on the road, or crossing legally."""
+        self.ped_on_road, self.ped_on_crossing, self.ped_legal = self.pedestrians.masks()
+        """(n,) each: active and on the carriageway; active and inside the zebra area; not on the road,
+        or crossing legally."""
 
     # ------------------------------------------------------------------ stepping
     def _car_snapshot(self) -> CarSnapshot:
-        tr = self.traffic
-        moving = tr.active & ~tr.parked
+        x, lane, direction, speed, half_length = self.traffic.moving()
         return CarSnapshot(
-            x=tr.x[moving],
-            lane=tr.lane[moving],
-            direction=tr.direction[moving],
-            speed=tr.speed[moving],
-            half_length=tr.length[moving] / 2,
-            boxes=tr.boxes(),
+            x=x,
+            lane=lane,
+            direction=direction,
+            speed=speed,
+            half_length=half_length,
+            boxes=self.traffic.boxes(),
         )
 
     def step(self, ego_acceleration: float) -> None:
@@ -96,22 +92,15 @@ class World:
         peds.step(self.time, self._car_snapshot(), green)
         # Background drivers: obstacles are pedestrians on the road, at the kerb, or on the zebra
         # (positions have not moved since the masks were refreshed at the end of the last step).
-        act = peds.active
-        near_zebra = np.abs(peds.crossing_x - self.scenario.crossing.position) < self.scenario.crossing.width
-        waiting = (peds.state == WAITING) & near_zebra & act & ~peds.jaywalker
-        acc = tr.background_accelerations(
-            peds.position[self.ped_on_road & act],
-            peds.position[waiting],
-            peds.position[self.ped_on_crossing & act],
-            green is True,
-        )
+        crossing = self.scenario.crossing
+        at_zebra = peds.anyone_at_zebra(float(crossing.position), float(crossing.width), self.ped_on_crossing)
+        acc = tr.background_accelerations(peds.position, self.ped_on_road, at_zebra, green is True)
         acc[0] = ego_acceleration
-        start_positions = tr.positions()
-        tr.advance(acc, dt, self.scenario.ego.max_speed)
         # Kinematic bodies move by velocity: use the mean velocity of the step so pymunk ends where we do.
-        vel = (tr.positions() - start_positions) / dt
+        start_positions, vel = tr.advance(acc, dt, self.scenario.ego.max_speed)
+        act = peds.active
         self._resize_new_pedestrians()
-        pos, pvel, contacts = self.physics.step(
+        peds.position, peds.velocity, contacts = self.physics.step(
             start_positions,
             vel,
             tr.active,
@@ -121,8 +110,6 @@ class World:
             dt,
             self.config.max_substep_displacement,
         )
-        peds.position = np.where(act[:, None], pos, peds.position)
-        peds.velocity = np.where(act[:, None], pvel, peds.velocity)
         self._refresh_masks()
         self._record_contacts(contacts)
         self._check_ego_vehicle_overlap()
@@ -132,8 +119,7 @@ class World:
 
     def _resize_new_pedestrians(self) -> None:
         peds = self.pedestrians
-        changed = np.flatnonzero(peds.active & (np.abs(self._sized_radius - peds.radius) > 1e-9))
-        for i in changed:
+        for i in _resized(peds.state, self._sized_radius, peds.radius):
             self.physics.set_pedestrian_radius(int(i), float(peds.radius[i]))
             self._sized_radius[i] = peds.radius[i]
 
@@ -173,14 +159,8 @@ class World:
         can touch it, and for those the boxes overlap exactly when their x-intervals do.
         """
         tr = self.traffic
-        overlap = tr.active & (tr.lane == tr.lane[0]) & ~tr.parked
-        overlap &= np.abs(tr.x - tr.x[0]) < (tr.length + tr.length[0]) / 2
-        overlap[0] = False
-        new = overlap & ~self._ego_vehicle_contact
-        self._ego_vehicle_contact = overlap
-        if not new.any():
-            return
-        for i in np.flatnonzero(new):
+        new = _new_ego_overlaps(tr.active, tr.lane, tr.parked, tr.x, tr.length, self._ego_vehicle_contact)
+        for i in new:
             rel = abs(tr.speed[0] - tr.speed[i] * tr.direction[i])
             self.collisions.append(
                 CollisionEvent(
@@ -237,3 +217,36 @@ class World:
                 "background_collisions": tuple(self.background_collisions),
             },
         )
+
+
+@njit(cache=True, nogil=True)
+def _resized(state: np.ndarray, sized_radius: FloatArray, radius: FloatArray) -> np.ndarray:
+    """Active pool slots whose body radius differs from the one their physics circle was given."""
+    return np.flatnonzero((state != 0) & (np.abs(sized_radius - radius) > 1e-9))
+
+
+@njit(cache=True, nogil=True)
+def _new_ego_overlaps(
+    active: np.ndarray,
+    lane: np.ndarray,
+    parked: np.ndarray,
+    x: FloatArray,
+    length: FloatArray,
+    in_contact: np.ndarray,
+) -> np.ndarray:
+    """Slots whose box started overlapping the ego's (slot 0) this step; `in_contact` is updated in place.
+
+    Vehicles keep their lanes and parked ones stand off the carriageway, so a car can only touch the ego in
+    its lane, and there the boxes overlap exactly when the x-intervals do.
+    """
+    new = np.zeros(x.shape[0], np.bool_)
+    for i in range(1, x.shape[0]):
+        overlap = (
+            active[i]
+            and lane[i] == lane[0]
+            and not parked[i]
+            and abs(x[i] - x[0]) < (length[i] + length[0]) / 2
+        )
+        new[i] = overlap and not in_contact[i]
+        in_contact[i] = overlap
+    return np.flatnonzero(new)
