@@ -271,14 +271,6 @@ class PedestrianPopulation:
     def _log(self, i: int, kind: str) -> None:
         self.events.append(BehaviourEvent(time=self.time, pedestrian_id=int(self.ids[i]), kind=kind))
 
-    def gaps(self, cars: CarSnapshot, rows: np.ndarray) -> FloatArray:
-        """Time gap (s) until the first approaching car reaches each given pedestrian's crossing line.
-
-        Cars already past the line, stopped cars and cars in lanes the pedestrian does not cross are
-        ignored; a car whose body already covers the line gives a gap of 0.
-        """
-        return _gaps(self.crossing_x, rows, cars.x, cars.direction, cars.half_length, cars.speed)
-
     def step(self, time: float, cars: CarSnapshot, pedestrian_green: bool | None) -> None:
         """Advance decisions and desired velocities by one step (physics integrates positions)."""
         self.time = time
@@ -311,18 +303,29 @@ class PedestrianPopulation:
         before, waiting = _start_waiting(st, arrived, self.wait_time, self.turning_back, self.dt)
         # WAITING: decide.
         if waiting.size:
-            red = np.full(waiting.size, pedestrian_green is False)
-            red &= ~self.jaywalker[waiting]  # the signal only governs the zebra
-            gap = self.gaps(cars, waiting)
-            # A distracted pedestrian looks up late: it judges the gap it saw DISTRACTED_LOOK_DELAY ago.
-            seen = gap + DISTRACTED_LOOK_DELAY * self.distracted[waiting]
+            red, gap, seen, critical_gap, phase, waited, red_violator = _waiting_context(
+                waiting,
+                pedestrian_green is False,
+                self.jaywalker,
+                self.distracted,
+                self.critical_gap,
+                self.phase,
+                self.wait_time,
+                self.red_violator,
+                self.crossing_x,
+                cars.x,
+                cars.direction,
+                cars.half_length,
+                cars.speed,
+            )
+            # A distracted pedestrian looks up late: `seen` is the gap it saw DISTRACTED_LOOK_DELAY ago.
             ctx = DecisionContext(
                 gap=seen,
-                critical_gap=self.critical_gap[waiting],
-                phase=self.phase[waiting],
-                waited=self.wait_time[waiting],
+                critical_gap=critical_gap,
+                phase=phase,
+                waited=waited,
                 red=red,
-                red_violator=self.red_violator[waiting],
+                red_violator=red_violator,
                 dt=self.dt,
             )
             prob = self.decision_model.probability(ctx)
@@ -330,15 +333,15 @@ class PedestrianPopulation:
             # Groups move together: members wait at the kerb for companions still walking up (for at most
             # GROUP_MAX_WAIT), and if one member goes, waiting companions go too.
             groups = self.group[waiting]
-            if np.any(groups >= 0) and go.any():
+            if go.any() and np.any(groups >= 0):
                 walking_up = self.group[(self.state == APPROACHING) & self.intends & (self.group >= 0)]
-                patient = self.wait_time[waiting] < GROUP_MAX_WAIT
+                patient = waited < GROUP_MAX_WAIT
                 held = (groups >= 0) & np.isin(groups, walking_up) & patient
                 go &= ~held
                 moving_groups = groups[go & (groups >= 0)]
                 go |= (groups >= 0) & np.isin(groups, moving_groups) & ~held
-            self.accepted_gap[waiting[go]] = gap[go]
-            for k in np.flatnonzero(go):
+            for k in np.flatnonzero(go) if go.any() else ():
+                self.accepted_gap[waiting[k]] = gap[k]
                 self._start_crossing(int(waiting[k]), bool(red[k]))
         # CROSSING: irrational acts (rare: Python handles them, drawing from the RNG in slot order).
         acts = _crossing_acts(
@@ -546,7 +549,11 @@ def _gaps(
     half_length: FloatArray,
     speed: FloatArray,
 ) -> FloatArray:
-    """`PedestrianPopulation.gaps` for the pedestrians at `rows` (compiled: called every step)."""
+    """Time gap (s) until the first approaching car reaches the crossing line of each pedestrian at `rows`.
+
+    Cars already past the line and stopped cars are ignored (every line spans the whole carriageway); a
+    car whose body already covers the line gives a gap of 0.
+    """
     out = np.full(rows.shape[0], np.inf)
     for k in range(rows.shape[0]):
         cx = crossing_x[rows[k]]
@@ -741,3 +748,32 @@ def _geometric_masks(
         if on_road[i]:
             legal[i] = not no_crossing and on_crossing[i] and not crossed_on_red[i] and not jaywalker[i]
     return on_road, on_crossing, legal
+
+
+@njit(cache=True, nogil=True)
+def _waiting_context(
+    waiting: np.ndarray,
+    signal_red: bool,
+    jaywalker: np.ndarray,
+    distracted: np.ndarray,
+    critical_gap: FloatArray,
+    phase: FloatArray,
+    wait_time: FloatArray,
+    red_violator: np.ndarray,
+    crossing_x: FloatArray,
+    car_x: FloatArray,
+    direction: FloatArray,
+    half_length: FloatArray,
+    speed: FloatArray,
+) -> tuple[np.ndarray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, np.ndarray]:
+    """Per waiting slot: (red, gap, gap seen, critical gap, phase, waited, red violator).
+
+    Red applies to the zebra's signal, so not to jaywalkers; the gap seen by a distracted pedestrian is
+    the one of `DISTRACTED_LOOK_DELAY` seconds ago.
+    """
+    red = np.empty(waiting.shape[0], np.bool_)
+    for k in range(waiting.shape[0]):
+        red[k] = signal_red and not jaywalker[waiting[k]]
+    gap = _gaps(crossing_x, waiting, car_x, direction, half_length, speed)
+    seen = gap + DISTRACTED_LOOK_DELAY * distracted[waiting]
+    return red, gap, seen, critical_gap[waiting], phase[waiting], wait_time[waiting], red_violator[waiting]
