@@ -287,7 +287,9 @@ class PedestrianPopulation:
         if not self.state.any():
             return  # nobody around: nothing to decide
         st = self.state
-        arrived = _arrived(
+        # Each transition applies to the state held at the start of the step (one transition per step),
+        # because `arrived` refers to the waypoint of that state. APPROACHING → WAITING at the kerb first.
+        arrived, before, waiting, acts, any_acts = _begin_transitions(
             self.position,
             self.velocity,
             self.waypoint,
@@ -297,10 +299,12 @@ class PedestrianPopulation:
             self.side,
             self.geometry.kerb_south,
             self.geometry.kerb_north,
+            self.wait_time,
+            self.turning_back,
+            self.dt,
+            self.hesitate_at,
+            self.turn_back_at,
         )
-        # Each transition applies to the state held at the start of the step (one transition per step),
-        # because `arrived` refers to the waypoint of that state. APPROACHING → WAITING at the kerb first.
-        before, waiting = _start_waiting(st, arrived, self.wait_time, self.turning_back, self.dt)
         # WAITING: decide.
         if waiting.size:
             red, gap, seen, critical_gap, phase, waited, red_violator = _waiting_context(
@@ -344,20 +348,11 @@ class PedestrianPopulation:
                 self.accepted_gap[waiting[k]] = gap[k]
                 self._start_crossing(int(waiting[k]), bool(red[k]))
         # CROSSING: irrational acts (rare: Python handles them, drawing from the RNG in slot order).
-        acts = _crossing_acts(
-            before,
-            self.position,
-            self.side,
-            self.hesitate_at,
-            self.turn_back_at,
-            self.geometry.kerb_south,
-            self.geometry.kerb_north,
-        )
-        for i in np.flatnonzero(acts & HESITATES) if acts.any() else ():
+        for i in np.flatnonzero(acts & HESITATES) if any_acts else ():
             self.hesitate_at[i] = np.inf
             self.hesitate_left[i] = self.rng.uniform(1.0, 2.5)
             self._log(i, "hesitate")
-        for i in np.flatnonzero(acts & TURNS_BACK) if acts.any() else ():
+        for i in np.flatnonzero(acts & TURNS_BACK) if any_acts else ():
             self.turn_back_at[i] = np.inf
             # Head back to the kerb it came from (its side is unchanged), wait there and re-decide.
             self.state[i] = APPROACHING
@@ -777,3 +772,31 @@ def _waiting_context(
     gap = _gaps(crossing_x, waiting, car_x, direction, half_length, speed)
     seen = gap + DISTRACTED_LOOK_DELAY * distracted[waiting]
     return red, gap, seen, critical_gap[waiting], phase[waiting], wait_time[waiting], red_violator[waiting]
+
+
+@njit(cache=True, nogil=True)
+def _begin_transitions(
+    position: FloatArray,
+    velocity: FloatArray,
+    waypoint: FloatArray,
+    state: np.ndarray,
+    intends: np.ndarray,
+    group: np.ndarray,
+    side: np.ndarray,
+    kerb_south: float,
+    kerb_north: float,
+    wait_time: FloatArray,
+    turning_back: np.ndarray,
+    dt: float,
+    hesitate_at: FloatArray,
+    turn_back_at: FloatArray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool]:
+    """The step's transitions up to the decisions, in one call.
+
+    Returns (arrived, states before, still waiting, crossing acts, whether any act starts). Acts only
+    concern those crossing since before the step, whom the decisions cannot change.
+    """
+    arrived = _arrived(position, velocity, waypoint, state, intends, group, side, kerb_south, kerb_north)
+    before, waiting = _start_waiting(state, arrived, wait_time, turning_back, dt)
+    acts = _crossing_acts(before, position, side, hesitate_at, turn_back_at, kerb_south, kerb_north)
+    return arrived, before, waiting, acts, acts.any()
