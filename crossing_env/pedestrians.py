@@ -125,6 +125,8 @@ class PedestrianPopulation:
         self.events: list[BehaviourEvent] = []
         self._pending = sorted(self.config.spawns, key=lambda s: s.time)
         self._kerb_y = (geometry.kerb_south - KERB_STANDOFF, geometry.kerb_north + KERB_STANDOFF)
+        self._kerb_lines = (float(geometry.kerb_south), float(geometry.kerb_north))
+        """(south, north) kerb y: the edges of the carriageway."""
         self._walk_y = (
             geometry.kerb_south - 0.55 * scenario.road.sidewalk_width,
             geometry.kerb_north + 0.55 * scenario.road.sidewalk_width,
@@ -421,22 +423,26 @@ class PedestrianPopulation:
         self.force_intensity = updated_ped_intensity(self.config.social_force.ped_intensity, fraction)
 
     def _update_velocities(self, cars: CarSnapshot) -> None:
+        rows, v0, stay = _walk_inputs(
+            self.state, self.hesitate_left, self.desired_speed, self.position, *self._kerb_lines
+        )
+        if rows.size == 0:
+            return
         sf = self.config.social_force
-        _walk_pool(
-            self.state,
-            self.hesitate_left,
-            self.desired_speed,
+        walk_step(
+            rows,
             self.position,
             self.velocity,
             self.waypoint,
+            v0,
             self.radius,
-            self.force_intensity,
+            stay,
             cars.boxes,
-            self.geometry.kerb_south,
-            self.geometry.kerb_north,
+            *self._kerb_lines,
+            self.force_intensity,
             self.dt,
             sf.max_speed_factor,
-            *model_parameters(sf),
+            model_parameters(sf),
         )
 
     def record_history(self) -> None:
@@ -653,48 +659,29 @@ def _finish_transitions(
 
 
 @njit(cache=True, nogil=True)
-def _walk_pool(
+def _walk_inputs(
     state: np.ndarray,
     hesitate_left: FloatArray,
     desired_speed: FloatArray,
     position: FloatArray,
-    velocity: FloatArray,
-    waypoint: FloatArray,
-    radius: FloatArray,
-    force_intensity: FloatArray,
-    boxes: FloatArray,
     kerb_south: float,
     kerb_north: float,
-    dt: float,
-    max_speed_factor: float,
-    tau: float,
-    base: float,
-    ped_range: float,
-    vehicle_range: float,
-    vehicle_intensity: float,
-    lam: float,
-    kerb_strength: float,
-    kerb_range: float,
-) -> None:
-    """One social-force velocity step for every active slot, in place.
+) -> tuple[np.ndarray, FloatArray, np.ndarray]:
+    """Active slots, desired speeds and sidewalk constraint for the social-force step.
 
     Hesitating pedestrians want to stand (v0 = 0); waiting ones keep walking towards their kerb point
     (the arrival slow-down makes them stand there; with no attraction, the kerb repulsion would push them
     back). Only crossing pedestrians may be on the carriageway: everyone else is held on the sidewalk.
+    (The step itself is `social_force.walk_step`, called from Python: kernels never call kernels of
+    another module, whose changes numba's on-disk cache would not notice.)
     """
     rows = np.flatnonzero(state != INACTIVE)
-    if rows.shape[0] == 0:
-        return
     v0 = np.where(hesitate_left > 0, 0.0, desired_speed)
     stay = np.empty(state.shape[0], dtype=np.bool_)
     for i in range(state.shape[0]):
         on_road = kerb_south < position[i, 1] < kerb_north
         stay[i] = state[i] != CROSSING and not (state[i] == APPROACHING and on_road)
-    walk_step(
-        rows, position, velocity, waypoint, v0, radius, stay, boxes, kerb_south, kerb_north, force_intensity,
-        dt, max_speed_factor, tau, base, ped_range, vehicle_range, vehicle_intensity, lam, kerb_strength,
-        kerb_range,
-    )  # fmt: skip
+    return rows, v0, stay
 
 
 @njit(cache=True, nogil=True)

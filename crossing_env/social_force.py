@@ -81,12 +81,12 @@ def social_force_acceleration(
         float(kerbs[0]),
         float(kerbs[1]),
         np.ascontiguousarray(k_p),
-        *model_parameters(params),
+        model_parameters(params),
     )
 
 
 def model_parameters(params: SocialForceConfig) -> tuple[float, ...]:
-    """The config as the positional floats the compiled kernels take (after `k_p`)."""
+    """The config as the tuple the kernels take: (τ, A, B_p, B_v, k_v, λ, kerb strength, kerb range)."""
     return (
         float(params.relaxation_time),
         float(params.base_strength),
@@ -114,14 +114,7 @@ def walk_step(
     k_p: FloatArray,
     dt: float,
     max_speed_factor: float,
-    tau: float,
-    base: float,
-    ped_range: float,
-    vehicle_range: float,
-    vehicle_intensity: float,
-    lam: float,
-    kerb_strength: float,
-    kerb_range: float,
+    params: tuple[float, float, float, float, float, float, float, float],
 ) -> None:
     """Advance the velocities of pool `rows` by one step of the social force, in place.
 
@@ -130,8 +123,7 @@ def walk_step(
     through its active rows).
     """
     acc = _social_force_kernel(
-        rows, pos, vel, goals, desired, radii, stay, boxes, south, north, k_p, tau, base, ped_range,
-        vehicle_range, vehicle_intensity, lam, kerb_strength, kerb_range,
+        rows, pos, vel, goals, desired, radii, stay, boxes, south, north, k_p, params
     )  # fmt: skip
     for k in range(rows.shape[0]):
         i = rows[k]
@@ -154,14 +146,7 @@ def _social_force_kernel(
     south: float,
     north: float,
     k_p: FloatArray,
-    tau: float,
-    base: float,
-    ped_range: float,
-    vehicle_range: float,
-    vehicle_intensity: float,
-    lam: float,
-    kerb_strength: float,
-    kerb_range: float,
+    params: tuple[float, float, float, float, float, float, float, float],
 ) -> FloatArray:
     """The model of the module docstring for the pedestrians at `rows` of the arrays, one at a time.
 
@@ -170,6 +155,7 @@ def _social_force_kernel(
     Pairs whose exponent is below `_MIN_EXPONENT` (centres more than ~9 m apart) are skipped: their term is
     below 1e-11 m/s².
     """
+    tau, base, ped_range, vehicle_range, vehicle_intensity, lam, kerb_strength, kerb_range = params
     n = rows.shape[0]
     acc = np.empty((n, 2))
     # Neighbours are scanned outwards in x order and the scan stops once |dx| alone puts the exponent below

@@ -7,11 +7,12 @@ All of that is one compiled (numba) pass per step.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
-from crossing_env.config import ScenarioConfig, VehicleSpawn
-from crossing_env.idm import idm_parameters, idm_scalar
+from crossing_env.config import IDMConfig, ScenarioConfig, VehicleSpawn
 from crossing_env.road import RoadGeometry
 from crossing_env.types import FloatArray
 
@@ -19,6 +20,81 @@ ENTRY_CLEARANCE = 20.0
 """A new car enters only if the nearest car in its lane is farther than this from the entry (m)."""
 PEDESTRIAN_LOOKAHEAD = 40.0
 """Drivers react to pedestrians on the carriageway within this distance ahead (m)."""
+
+
+# ---------------------------------------------------------------------- car following
+# Intelligent Driver Model (Treiber, Hennecke & Helbing 2000). highway-env's per-vehicle Python objects are
+# what make its crossing-free intersections run at about 17 steps/s; here one compiled call advances every
+# vehicle. The law lives in this module because the leader-search kernel below calls it: numba's on-disk
+# cache of a kernel is only refreshed when the kernel's own file changes, so kernels never call kernels
+# defined in another module.
+
+
+def idm_parameters(params: IDMConfig) -> tuple[float, float, float, float, float, float]:
+    """The config as the tuple the compiled functions take: (a, b, max deceleration, T, s0, δ)."""
+    return (
+        float(params.max_acceleration),
+        float(params.comfortable_deceleration),
+        float(params.max_deceleration),
+        float(params.time_headway),
+        float(params.min_gap),
+        float(params.delta),
+    )
+
+
+@njit(cache=True, nogil=True)
+def idm_scalar(
+    speed: float,
+    desired_speed: float,
+    gap: float,
+    leader_speed: float,
+    params: tuple[float, float, float, float, float, float],
+) -> float:
+    """IDM acceleration of one vehicle (as `idm_acceleration`; `params` from `idm_parameters`)."""
+    a, b, max_deceleration, time_headway, min_gap, delta = params
+    free = 1.0 - (max(speed, 0.0) / max(desired_speed, 1e-3)) ** delta
+    s_star = min_gap + max(
+        0.0, speed * time_headway + speed * (speed - leader_speed) / (2.0 * math.sqrt(a * b))
+    )
+    interaction = (s_star / max(gap, 1e-2)) ** 2 if math.isfinite(gap) else 0.0
+    return min(max(a * (free - interaction), -max_deceleration), a)
+
+
+@njit(cache=True, nogil=True)
+def _idm_all(
+    speed: FloatArray,
+    desired_speed: FloatArray,
+    gap: FloatArray,
+    leader_speed: FloatArray,
+    params: tuple[float, float, float, float, float, float],
+) -> FloatArray:
+    out = np.empty(speed.shape[0])
+    for i in range(speed.shape[0]):
+        out[i] = idm_scalar(speed[i], desired_speed[i], gap[i], leader_speed[i], params)
+    return out
+
+
+def idm_acceleration(
+    speed: FloatArray,
+    desired_speed: FloatArray,
+    gap: FloatArray,
+    leader_speed: FloatArray,
+    params: IDMConfig,
+) -> FloatArray:
+    """IDM acceleration for every vehicle.
+
+    Args:
+        speed: (N,) own speeds, m/s.
+        desired_speed: (N,) desired speeds v0, m/s.
+        gap: (N,) bumper-to-bumper distance to the leader (or obstacle), metres; `inf` for a free road.
+        leader_speed: (N,) speed of the leader (0 for a stop line or pedestrian), m/s.
+        params: IDM parameters.
+
+    Returns:
+        (N,) accelerations, clipped to [−max_deceleration, max_acceleration].
+    """
+    arrays = (np.ascontiguousarray(v, dtype=np.float64) for v in (speed, desired_speed, gap, leader_speed))
+    return _idm_all(*arrays, idm_parameters(params))
 
 
 class Traffic:
@@ -171,7 +247,7 @@ class Traffic:
             bool(cars_must_stop),
             float(geo.stop_line_x(1.0)) if geo.has_crossing else 0.0,
             float(geo.stop_line_x(-1.0)) if geo.has_crossing else 0.0,
-            *idm_parameters(self.config.idm),
+            idm_parameters(self.config.idm),
         )
 
     def advance(
@@ -219,12 +295,7 @@ def _background_accelerations(
     everyone_stops: bool,
     stop_x_forward: float,
     stop_x_backward: float,
-    a: float,
-    b: float,
-    max_deceleration: float,
-    time_headway: float,
-    min_gap: float,
-    delta: float,
+    idm: tuple[float, float, float, float, float, float],
 ) -> FloatArray:
     """Per slot: the nearest obstacle ahead (leader in lane, pedestrian on the road, stop line), then IDM.
 
@@ -233,7 +304,7 @@ def _background_accelerations(
     """
     n = x.shape[0]
     acc = np.zeros(n)
-    braking = max_deceleration * 0.6
+    braking = idm[2] * 0.6  # a share of the maximum deceleration
     for i in range(n):
         if not active[i] or parked[i]:
             continue
@@ -267,9 +338,7 @@ def _background_accelerations(
             line_gap = max(to_line, 0.01)
             if can_stop and to_line > -1.0 and line_gap < gap:
                 gap, lead_speed = line_gap, 0.0
-        acc[i] = idm_scalar(
-            speed[i], desired_speed[i], gap, lead_speed, a, b, max_deceleration, time_headway, min_gap, delta
-        )
+        acc[i] = idm_scalar(speed[i], desired_speed[i], gap, lead_speed, idm)
     return acc
 
 

@@ -16,3 +16,44 @@ REPO = Path(__file__).resolve().parents[1]
 def test_ruff_is_clean(command):
     result = subprocess.run(command, cwd=REPO, capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stdout + result.stderr
+
+
+def _compiled_kernels(module):
+    from numba.core.registry import CPUDispatcher
+
+    return {
+        name: obj
+        for name, obj in vars(module).items()
+        if isinstance(obj, CPUDispatcher) and obj.py_func.__module__ == module.__name__
+    }
+
+
+@pytest.mark.parametrize(
+    "module_name",
+    [
+        "crossing_env.observation",
+        "crossing_env.pedestrians",
+        "crossing_env.physics",
+        "crossing_env.social_force",
+        "crossing_env.traffic",
+        "crossing_env.world",
+        "predictors.fast_inference",
+    ],
+)
+def test_kernels_only_call_kernels_of_their_own_module(module_name):
+    """numba refreshes a kernel's on-disk cache only when the kernel's own file changes; a kernel calling a
+    kernel of another module would keep running that callee's old code after an edit."""
+    import importlib
+
+    from numba.core.registry import CPUDispatcher
+
+    module = importlib.import_module(module_name)
+    kernels = _compiled_kernels(module)
+    assert kernels, f"{module_name} has no compiled kernels (update this list)"
+    for name, kernel in kernels.items():
+        for called in kernel.py_func.__code__.co_names:
+            target = vars(module).get(called)
+            if isinstance(target, CPUDispatcher):
+                assert target.py_func.__module__ == module_name, (
+                    f"{module_name}.{name} calls {target.py_func.__module__}.{called}"
+                )

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from crossing_env.config import IDMConfig, SocialForceConfig
-from crossing_env.idm import idm_acceleration
 from crossing_env.physics import PhysicsWorld
 from crossing_env.social_force import model_parameters, social_force_acceleration, walk_step
+from crossing_env.traffic import idm_acceleration
 
 NO_BOXES = np.zeros((0, 4))
 FAR_KERBS = (-1000.0, -999.0)  # kerbs far away: no kerb force
@@ -261,6 +261,6 @@ def test_walk_step_on_pool_rows_matches_gathered_acceleration_and_speed_limit():
     want[rows] = limit_speed(vel[rows] + acc * 0.1, np.maximum(v0[rows], 0.05) * p.max_speed_factor)
     got = vel.copy()
     walk_step(rows, pos, got, goals, v0, radii, stay, boxes, 0.0, 7.0, k_p, 0.1, p.max_speed_factor,
-              *model_parameters(p))  # fmt: skip
+              model_parameters(p))  # fmt: skip
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
     assert not np.allclose(got[rows], vel[rows])
