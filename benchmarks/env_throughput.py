@@ -28,6 +28,10 @@ class Timer:
         # Random actions drawn up front: sampling a Box costs tens of microseconds, which would be timed
         # as part of the env step.
         self.actions = [env.action_space.sample() for _ in range(4096)]
+        # Untimed warm-up: a first step compiles (or loads from numba's disk cache) the kernels it uses.
+        for action in self.actions[:20]:
+            env.step(action)
+        env.reset(seed=seed)
         self.steps = 0
         self.seconds = 0.0
         self.episodes = 0
