@@ -150,6 +150,10 @@ def wrapper_rollout(count: int, episodes: int = 2, steps: int = 150) -> dict[str
 
     import crossing_env  # noqa: F401  (registers Crossing-v0)
 
+    warm = TrajectoryPrediction(gym.make("crossing_env/Crossing-v0", scenario=crowd_scenario(count, 0)))
+    warm.reset(seed=0)
+    warm.step(np.array([-0.2], np.float32))  # untimed: compiles (or loads) the numba kernels
+    warm.close()
     hit_t: list[float] = []
     miss_t: list[float] = []
     present: list[int] = []
