@@ -118,13 +118,11 @@ def walk_step(
 ) -> None:
     """Advance the velocities of pool `rows` by one step of the social force, in place.
 
-    The same as `social_force_acceleration` on the gathered rows followed by `limit_speed` to
-    `max(desired, 0.05) · max_speed_factor`, without the gathers (a pedestrian pool is mostly addressed
-    through its active rows).
+    The same as `social_force_acceleration` on the gathered rows, an explicit Euler velocity update, and
+    the speed scaled down to at most `max(desired, 0.05) · max_speed_factor`, without the gathers (a
+    pedestrian pool is mostly addressed through its active rows).
     """
-    acc = _social_force_kernel(
-        rows, pos, vel, goals, desired, radii, stay, boxes, south, north, k_p, params
-    )  # fmt: skip
+    acc = _social_force_kernel(rows, pos, vel, goals, desired, radii, stay, boxes, south, north, k_p, params)
     for k in range(rows.shape[0]):
         i = rows[k]
         vx, vy = vel[i, 0] + acc[k, 0] * dt, vel[i, 1] + acc[k, 1] * dt
