@@ -127,6 +127,9 @@ class PedestrianPopulation:
         self._kerb_y = (geometry.kerb_south - KERB_STANDOFF, geometry.kerb_north + KERB_STANDOFF)
         self._kerb_lines = (float(geometry.kerb_south), float(geometry.kerb_north))
         """(south, north) kerb y: the edges of the carriageway."""
+        self._road_length = float(scenario.road.length)
+        self._force_parameters = model_parameters(self.config.social_force)
+        """The social-force config as the kernels take it (unpacked once, not every step)."""
         self._walk_y = (
             geometry.kerb_south - 0.55 * scenario.road.sidewalk_width,
             geometry.kerb_north + 0.55 * scenario.road.sidewalk_width,
@@ -299,8 +302,7 @@ class PedestrianPopulation:
             self.intends,
             self.group,
             self.side,
-            self.geometry.kerb_south,
-            self.geometry.kerb_north,
+            *self._kerb_lines,
             self.wait_time,
             self.turning_back,
             self.dt,
@@ -377,7 +379,7 @@ class PedestrianPopulation:
             self.velocity,
             self.position,
             self.dt,
-            float(self.scenario.road.length),
+            self._road_length,
         )
 
     def _start_crossing(self, i: int, red: bool) -> None:
@@ -392,12 +394,16 @@ class PedestrianPopulation:
             self.desired_speed[i] = min(2.0 * self.base_speed[i], 3.5)
             self._log(i, "run")
 
-    def anyone_at_zebra(
-        self, crossing_position: float, crossing_width: float, on_crossing: np.ndarray
-    ) -> bool:
+    def anyone_at_zebra(self, on_crossing: np.ndarray) -> bool:
         """Whether anyone waits by the crossing (jaywalkers aside) or is on it (`on_crossing`)."""
+        crossing = self.scenario.crossing
         return _anyone_at_zebra(
-            self.state, self.crossing_x, self.jaywalker, on_crossing, crossing_position, crossing_width
+            self.state,
+            self.crossing_x,
+            self.jaywalker,
+            on_crossing,
+            float(crossing.position),
+            float(crossing.width),
         )
 
     def irrational_now(self) -> np.ndarray:
@@ -442,7 +448,7 @@ class PedestrianPopulation:
             self.force_intensity,
             self.dt,
             sf.max_speed_factor,
-            model_parameters(sf),
+            self._force_parameters,
         )
 
     def record_history(self) -> None:
@@ -453,14 +459,16 @@ class PedestrianPopulation:
             self.history[:, -1] = self.position
 
     def masks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """`(on_road(), on_crossing(), legal())` in one pass (the world refreshes them every step)."""
-        geo, rect = self.geometry, self.geometry.crossing_rect
+        """(on the carriageway, on the zebra, legal) per slot; the world refreshes them every step.
+
+        Legal: on the zebra and not against red, or not on the road at all. Inactive slots are off the road.
+        """
+        rect = self.geometry.crossing_rect
         return _geometric_masks(
             self.state,
             self.position,
-            geo.kerb_south,
-            geo.kerb_north,
-            geo.has_crossing,
+            *self._kerb_lines,
+            self.geometry.has_crossing,
             float(rect.x_min),
             float(rect.x_max),
             float(rect.y_min),
@@ -470,27 +478,10 @@ class PedestrianPopulation:
             self.jaywalker,
         )
 
-    def on_crossing(self) -> np.ndarray:
-        """(n,) centre inside the zebra area."""
-        if not self.geometry.has_crossing:
-            return np.zeros(self.capacity, dtype=bool)
-        return self.geometry.crossing_rect.contains(self.position) & self.active
-
     def on_road(self) -> np.ndarray:
         """(n,) centre on the carriageway."""
         y = self.position[:, 1]
         return (y > self.geometry.kerb_south) & (y < self.geometry.kerb_north) & self.active
-
-    def legal(self, on_road: np.ndarray | None = None, on_crossing: np.ndarray | None = None) -> np.ndarray:
-        """(n,) crossing legally: on the zebra and not against red, or not on the road at all.
-
-        `on_road` / `on_crossing` may be passed when the caller already has them for this step.
-        """
-        on_road = self.on_road() if on_road is None else on_road
-        if self.scenario.crossing.kind == "none":
-            return ~on_road
-        on_crossing = self.on_crossing() if on_crossing is None else on_crossing
-        return ~on_road | (on_crossing & ~self.crossed_on_red & ~self.jaywalker)
 
 
 @njit(cache=True, nogil=True)

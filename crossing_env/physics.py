@@ -69,8 +69,8 @@ class PhysicsWorld:
         length, width = vehicle_size
         self._half_extent = np.tile([length / 2, width / 2], (vehicle_capacity, 1))
         """(V, 2) half length and half width of each vehicle box (for the substep test)."""
-        self._radius = np.full(pedestrian_capacity, 0.3)
-        """(P,) radius of each pedestrian circle (for the substep test)."""
+        self.radius = np.full(pedestrian_capacity, 0.3)
+        """(P,) radius of each pedestrian circle (read-only outside; set with `set_pedestrian_radius`)."""
         for i in range(vehicle_capacity):
             body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
             body.position = (_PARK_X - 20.0 * i, -1000.0)
@@ -115,7 +115,7 @@ class PhysicsWorld:
     def set_pedestrian_radius(self, slot: int, radius: float) -> None:
         """Resize a pedestrian's circle."""
         self.pedestrian_shapes[slot].unsafe_set_radius(radius)
-        self._radius[slot] = radius
+        self.radius[slot] = radius
 
     def _sync_filters(self, vehicles_on: BoolArray, pedestrians_on: BoolArray) -> None:
         """Switch collisions on for slots that became active and off for freed slots (rare)."""
@@ -156,7 +156,7 @@ class PhysicsWorld:
             pedestrians_on,
             dt,
             self._half_extent,
-            self._radius,
+            self.radius,
             max_displacement,
         )
         self._set_buffer.set_float_buf(state.reshape(-1))

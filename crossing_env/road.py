@@ -14,7 +14,7 @@ from highway_env.road.lane import LineType, StraightLane
 from highway_env.road.road import RoadNetwork
 
 from crossing_env.config import CrosswalkConfig, RoadConfig, SignalConfig
-from crossing_env.types import ConflictArea, FloatArray
+from crossing_env.types import ConflictArea
 
 
 @dataclass(frozen=True)
@@ -25,11 +25,6 @@ class Rect:
     x_max: float
     y_min: float
     y_max: float
-
-    def contains(self, xy: FloatArray) -> np.ndarray:
-        """Vectorised point-in-rectangle test for an (N, 2) array."""
-        x, y = xy[..., 0], xy[..., 1]
-        return (x >= self.x_min) & (x <= self.x_max) & (y >= self.y_min) & (y <= self.y_max)
 
 
 class PedestrianSignal:

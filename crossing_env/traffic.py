@@ -122,6 +122,15 @@ class Traffic:
         """(n,) centre y per slot (vehicles do not change lanes)."""
         self.direction = np.ones(n)
         """(n,) travel direction per slot (+1 towards +x)."""
+        road, has_crossing = geometry.road, geometry.has_crossing
+        self._road_constants = (
+            float(road.lane_width),
+            int(road.num_lanes),
+            float(geometry.stop_line_x(1.0)) if has_crossing else 0.0,
+            float(geometry.stop_line_x(-1.0)) if has_crossing else 0.0,
+            idm_parameters(self.config.idm),
+        )
+        """What the leader-search kernel needs of the road, stop lines and IDM (fixed for an episode)."""
         self.next_id = 1
         ego = scenario.ego
         self.active[0] = True
@@ -138,16 +147,13 @@ class Traffic:
         """Centre y and direction of slot i from its highway-env lane (parked: the strip by the south kerb).
 
         Done once per spawn: vehicles keep their lanes, so the hot path only reads the cached `y` and
-        `direction` arrays instead of querying lane objects.
+        `direction` arrays.
         """
-        lane = self.geometry.lanes[self.lane[i]]
-        self.direction[i] = float(np.sign(np.cos(lane.heading)))
+        self.direction[i] = self.geometry.lane_direction[self.lane[i]]
         if self.parked[i]:
             self.y[i] = self.geometry.kerb_south - self.width[i] / 2 - 0.1
         else:
-            # The lane's centre line (exact for our straight lanes; `lane.position` would add ~1e-14 m of
-            # rounding from sin(π) on the lanes towards −x).
-            self.y[i] = float(lane.start[1])
+            self.y[i] = self.geometry.lane_y[self.lane[i]]
 
     def positions(self) -> FloatArray:
         """(n, 2) centres."""
@@ -227,8 +233,7 @@ class Traffic:
         """
         # Stop line: red signal for everyone, pedestrians at the zebra for yielders.
         yield_now = self.scenario.crossing.kind == "zebra" and pedestrians_at_zebra
-        geo = self.geometry
-        stop_lines = geo.has_crossing and (cars_must_stop or yield_now)
+        stop_lines = self.geometry.has_crossing and (cars_must_stop or yield_now)
         return _background_accelerations(
             self.x,
             self.direction,
@@ -241,13 +246,9 @@ class Traffic:
             self.yields,
             ped_positions,
             ped_on_road,
-            float(geo.road.lane_width),
-            int(geo.road.num_lanes),
             bool(stop_lines),
             bool(cars_must_stop),
-            float(geo.stop_line_x(1.0)) if geo.has_crossing else 0.0,
-            float(geo.stop_line_x(-1.0)) if geo.has_crossing else 0.0,
-            idm_parameters(self.config.idm),
+            *self._road_constants,
         )
 
     def advance(
@@ -289,10 +290,10 @@ def _background_accelerations(
     yields: np.ndarray,
     ped_positions: FloatArray,
     ped_on_road: np.ndarray,
-    lane_width: float,
-    num_lanes: int,
     stop_lines: bool,
     everyone_stops: bool,
+    lane_width: float,
+    num_lanes: int,
     stop_x_forward: float,
     stop_x_backward: float,
     idm: tuple[float, float, float, float, float, float],

@@ -55,7 +55,6 @@ class World:
         )
         t = scenario.traffic
         self.physics = PhysicsWorld(self.traffic.capacity, self.pedestrians.capacity, (t.length, t.width))
-        self._sized_radius = np.full(self.pedestrians.capacity, 0.3)
         self.collisions: list[CollisionEvent] = []
         """Ego collisions that began during the last step."""
         self.background_collisions: list[CollisionEvent] = []
@@ -92,8 +91,7 @@ class World:
         peds.step(self.time, self._car_snapshot(), green)
         # Background drivers: obstacles are pedestrians on the road, at the kerb, or on the zebra
         # (positions have not moved since the masks were refreshed at the end of the last step).
-        crossing = self.scenario.crossing
-        at_zebra = peds.anyone_at_zebra(float(crossing.position), float(crossing.width), self.ped_on_crossing)
+        at_zebra = peds.anyone_at_zebra(self.ped_on_crossing)
         acc = tr.background_accelerations(peds.position, self.ped_on_road, at_zebra, green is True)
         acc[0] = ego_acceleration
         # Kinematic bodies move by velocity: use the mean velocity of the step so pymunk ends where we do.
@@ -119,45 +117,27 @@ class World:
 
     def _resize_new_pedestrians(self) -> None:
         peds = self.pedestrians
-        for i in _resized(peds.state, self._sized_radius, peds.radius):
+        for i in _resized(peds.state, self.physics.radius, peds.radius):
             self.physics.set_pedestrian_radius(int(i), float(peds.radius[i]))
-            self._sized_radius[i] = peds.radius[i]
 
     def _record_contacts(self, contacts: list) -> None:
         self.collisions = []
         self.background_collisions = []
-        legal = self.ped_legal
         for c in contacts:
-            if c.vehicle_slot != 0:
-                self.background_contacts += 1
-                self.background_collisions.append(
-                    CollisionEvent(
-                        time=round(self.time, 9),
-                        kind="background",
-                        other_id=int(self.pedestrians.ids[c.pedestrian_slot]),
-                        position=c.point,
-                        relative_speed=c.relative_speed,
-                        compliant=bool(legal[c.pedestrian_slot]),
-                    )
-                )
-                continue
-            self.collisions.append(
-                CollisionEvent(
-                    time=round(self.time, 9),
-                    kind="pedestrian",
-                    other_id=int(self.pedestrians.ids[c.pedestrian_slot]),
-                    position=c.point,
-                    relative_speed=c.relative_speed,
-                    compliant=bool(legal[c.pedestrian_slot]),
-                )
+            ego = c.vehicle_slot == 0
+            event = CollisionEvent(
+                time=round(self.time, 9),
+                kind="pedestrian" if ego else "background",
+                other_id=int(self.pedestrians.ids[c.pedestrian_slot]),
+                position=c.point,
+                relative_speed=c.relative_speed,
+                compliant=bool(self.ped_legal[c.pedestrian_slot]),
             )
+            (self.collisions if ego else self.background_collisions).append(event)
+        self.background_contacts += len(self.background_collisions)
 
     def _check_ego_vehicle_overlap(self) -> None:
-        """Kinematic bodies never collide in pymunk, so ego–car contact is an overlap test along the lane.
-
-        Vehicles keep their lanes and parked cars stand off the carriageway, so only cars in the ego's lane
-        can touch it, and for those the boxes overlap exactly when their x-intervals do.
-        """
+        """Kinematic bodies never collide in pymunk: ego–car contact is `_new_ego_overlaps`."""
         tr = self.traffic
         new = _new_ego_overlaps(tr.active, tr.lane, tr.parked, tr.x, tr.length, self._ego_vehicle_contact)
         for i in new:
@@ -220,9 +200,9 @@ class World:
 
 
 @njit(cache=True, nogil=True)
-def _resized(state: np.ndarray, sized_radius: FloatArray, radius: FloatArray) -> np.ndarray:
+def _resized(state: np.ndarray, body_radius: FloatArray, radius: FloatArray) -> np.ndarray:
     """Active pool slots whose body radius differs from the one their physics circle was given."""
-    return np.flatnonzero((state != 0) & (np.abs(sized_radius - radius) > 1e-9))
+    return np.flatnonzero((state != 0) & (np.abs(body_radius - radius) > 1e-9))
 
 
 @njit(cache=True, nogil=True)
