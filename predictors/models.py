@@ -5,15 +5,16 @@ displacement, an optional social tensor (neighbours' states summed into a grid),
 bivariate Gaussian head ``(mu_x, mu_y, sigma_x, sigma_y, rho)`` over the next displacement. Only the cell
 and the pooling frame differ, so the comparison isolates the cell.
 
-Pooling (vectorised; no per-pedestrian Python loop): all ordered pairs ``(i, j)`` of pedestrians in the
-same window are built once per batch; at each step the offsets ``p_j - p_i`` are optionally rotated into the
-frame of ``i``'s last velocity, masked to the field-of-view sector ``|atan2(y, x)| <= fov / 2``, binned into a
-``G x G`` grid of side ``neighborhood`` metres centred on ``i`` and the neighbours' states are summed into
-their cells with ``index_add_`` (:meth:`SocialRecurrent.social_pool`). The rollout never builds that mostly
-empty tensor: it applies the pooling embedding to each neighbour's state with its cell's weight slice
-(:meth:`SocialRecurrent.pooled_embedding`, equal by linearity) and bins all observed steps at once.
-Near-stationary pedestrians keep their previous heading; a pedestrian whose heading has never been defined
-pools over the full grid (prediction.md §3, FoV pitfall).
+Pooling (no per-pedestrian Python loop): all ordered pairs ``(i, j)`` of pedestrians in the same window are
+built once per batch. At each step the compiled :mod:`predictors.pooling` pass finds, for every pair, the
+offset ``p_j - p_i``, optionally rotated into the frame of ``i``'s last velocity and masked to the
+field-of-view sector ``|atan2(y, x)| <= fov / 2``, and the cell of a ``G x G`` grid of side ``neighborhood``
+metres centred on ``i`` it falls in. The social tensor sums the neighbours' states per cell
+(:meth:`SocialRecurrent.social_pool`, the reference form). The rollout never builds that mostly empty
+tensor: it applies the pooling embedding to each neighbour's state with its cell's weight slice
+(:meth:`SocialRecurrent.pooled_embedding`, equal by linearity). Near-stationary pedestrians keep their
+previous heading; a pedestrian whose heading has never been defined pools over the full grid
+(prediction.md §3, FoV pitfall).
 
 Departures from the papers: Social-LSTM (Alahi et al. 2016) pools in an axis-aligned world-frame grid; we
 keep that for S-LSTM/S-GRU (``pool_frame="world"``) but S-CGRU pools in the heading frame, which is what a
@@ -31,10 +32,11 @@ from torch import nn
 
 from predictors.cgru import ComplexGRUCell
 from predictors.data import OBS_LEN, PRED_LEN
+from predictors.pooling import HeadingTracker, Layout, PoolingGeometry, grid_layout
 
 MODEL_KINDS: tuple[str, ...] = ("s-cgru", "s-gru", "s-lstm", "lstm")
-PoolGroups = tuple[torch.Tensor, torch.Tensor, torch.Tensor, int] | None
-"""One step's pooling layout ``(i, j, slot, most)`` from :meth:`SocialRecurrent.pool_groups`."""
+PoolGroups = tuple[torch.Tensor, torch.Tensor, torch.Tensor, int, torch.Tensor] | None
+"""One step's pooling layout ``(i, j, slot, most, used)`` from :meth:`SocialRecurrent.pool_groups`."""
 
 
 @dataclass(frozen=True)
@@ -172,6 +174,11 @@ class SocialRecurrent(nn.Module):
                 self.head.bias.zero_()
 
     # ----------------------------------------------------------------- pooling
+    def pooling_geometry(self) -> PoolingGeometry:
+        """This model's grid, frame, sector and heading threshold."""
+        c = self.config
+        return PoolingGeometry(c.neighborhood, c.grid_size, c.fov_deg, c.pool_frame == "heading", c.min_speed)
+
     def pool_cells(
         self,
         pos: torch.Tensor,
@@ -181,31 +188,11 @@ class SocialRecurrent(nn.Module):
     ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """The pairs ``(i, j)`` with ``j`` in ``i``'s grid (and sector), and the cell ``j`` falls in.
 
-        ``pairs``: ``(i, j)`` or the same stacked as one ``(2, P)`` tensor (what :meth:`rollout` passes, so
-        both ends are gathered in one indexing op). In the heading frame the offset is rotated as the
-        complex product ``(p_j - p_i) * conj(u_i)`` (real part ``d . u``, imaginary part ``u x d``) and the
-        sector test uses its argument: one complex multiply and one ``angle`` instead of a dozen real ops.
+        ``pairs``: ``(i, j)`` or the same stacked as one ``(2, P)`` tensor.
         """
-        c = self.config
         ij = pairs if isinstance(pairs, torch.Tensor) else torch.stack(pairs)
-        g = c.grid_size
-        ends = pos.index_select(0, ij.reshape(-1)).view(2, -1, 2)  # (2, P, 2); index_select: cheaper than []
-        d = ends[1] - ends[0]
-        if c.pool_frame == "heading":
-            z = torch.view_as_complex(d) * torch.view_as_complex(heading).index_select(0, ij[0]).conj()
-            xy = torch.view_as_real(z)
-        half, cell = 0.5 * c.neighborhood, c.neighborhood / g
-        cxy = torch.floor((xy if c.pool_frame == "heading" else d).add(half).div_(cell))
-        inside = (cxy == cxy.clamp(0, g - 1)).all(dim=1)  # both cell coordinates in 0 .. g-1
-        if c.fov_deg < 360.0:
-            limit = torch.where(
-                heading_ok, math.radians(c.fov_deg) / 2.0, 4.0
-            )  # 4 > pi: no heading, no sector
-            inside &= torch.angle(z).abs() <= limit.index_select(0, ij[0])
-        keep = torch.nonzero(inside).squeeze(1)
-        kept = ij.index_select(1, keep)
-        cxy = cxy.index_select(0, keep)
-        return kept[0], kept[1], (cxy[:, 1] * g + cxy[:, 0]).long()
+        i, j, cell, _, _, _ = grid_layout(self.pooling_geometry(), pos, heading, heading_ok, ij)
+        return i, j, cell
 
     def social_pool(
         self,
@@ -233,20 +220,16 @@ class SocialRecurrent(nn.Module):
         gg = c.grid_size * c.grid_size
         return self.pool_embed.weight.view(c.embed_size, gg, c.hidden_size).permute(1, 2, 0).contiguous()
 
-    def pool_groups(self, cells: tuple[torch.Tensor, torch.Tensor, torch.Tensor]) -> PoolGroups:
-        """Pairs ``(i, j, cell)`` from :meth:`pool_cells` laid out for :meth:`pooled_embedding`.
+    @staticmethod
+    def pool_groups(layout: Layout) -> PoolGroups:
+        """A :mod:`predictors.pooling` layout as :meth:`pooled_embedding` takes it; ``None`` if empty.
 
-        Returns ``(i, j, slot, most)``: ``most`` is the largest number of pairs in one cell and ``slot =
-        cell * most + rank`` the pair's row in a ``(G*G, most)`` buffer, its rank among its cell's pairs
-        coming from a running count over a pair-by-cell indicator (no sort). ``None`` if there is no pair.
+        Returns ``(i, j, slot, most, used)``: ``used`` are the cells holding a pair, ``most`` the largest
+        number of pairs in one cell and ``slot`` the pair's row in a ``(len(used), most)`` buffer
+        (:func:`predictors.pooling._grid_layout`).
         """
-        i, j, cell = cells
-        if cell.numel() == 0:
-            return None
-        gg = self.config.grid_size**2
-        running = (cell[:, None] == torch.arange(gg, device=cell.device)).cumsum(0)  # (P, G*G)
-        most = int(running[-1].max())
-        return i, j, running.gather(1, cell[:, None]).squeeze(1) + (cell * most - 1), most
+        i, j, _, slot, most, used = layout
+        return None if i.numel() == 0 else (i, j, slot, most, used)
 
     def pooled_embedding(
         self, state: torch.Tensor, groups: PoolGroups, cell_weights: torch.Tensor
@@ -264,39 +247,13 @@ class SocialRecurrent(nn.Module):
         bias = self.pool_embed.bias.expand(state.shape[0], -1)
         if groups is None:
             return bias.clone()
-        i, j, slot, most = groups
-        gg, e = cell_weights.shape[0], cell_weights.shape[2]
-        buf = state.new_zeros(gg * most, state.shape[1]).index_copy_(0, slot, state.index_select(0, j))
-        per_pair = torch.bmm(buf.view(gg, most, -1), cell_weights).view(-1, e).index_select(0, slot)
+        i, j, slot, most, used = groups
+        if used.numel() < cell_weights.shape[0]:  # skip empty cells (most cells, with a sector)
+            cell_weights = cell_weights.index_select(0, used)
+        k, e = cell_weights.shape[0], cell_weights.shape[2]
+        buf = state.new_zeros(k * most, state.shape[1]).index_copy_(0, slot, state.index_select(0, j))
+        per_pair = torch.bmm(buf.view(k, most, -1), cell_weights).view(-1, e).index_select(0, slot)
         return torch.index_add(bias, 0, i, per_pair)
-
-    def observed_pooling(
-        self,
-        obs: torch.Tensor,
-        heading: torch.Tensor,
-        ok: torch.Tensor,
-        pairs: tuple[torch.Tensor, torch.Tensor] | torch.Tensor,
-    ) -> list[PoolGroups]:
-        """:meth:`pool_groups` of the observed steps ``1 .. T-1`` of ``obs (N, T, 2)``, computed in one pass.
-
-        The geometry of the observed steps does not depend on the recurrent state, so all their pairs are
-        stacked (step ``t``'s pedestrians renumbered ``t * N + k``), binned at once, then split by step.
-        Generic (every pooling model), like the rest of :meth:`rollout`'s per-rollout preparation.
-        """
-        n, steps = obs.shape[0], obs.shape[1] - 1
-        ij = pairs if isinstance(pairs, torch.Tensor) else torch.stack(pairs)
-        off = (torch.arange(steps, device=obs.device) * n).repeat_interleave(ij.shape[1])
-        ci, cj, cell = self.pool_cells(
-            obs[:, 1:].transpose(0, 1).reshape(-1, 2),
-            heading[:, 1:].transpose(0, 1).reshape(-1, 2),
-            ok[:, 1:].t().reshape(-1),
-            ij.repeat(1, steps) + off,
-        )
-        step = torch.div(ci, n, rounding_mode="floor")
-        sizes = torch.bincount(step, minlength=steps).tolist()
-        base = step * n
-        split = (torch.split(ci - base, sizes), torch.split(cj - base, sizes), torch.split(cell, sizes))
-        return [self.pool_groups(c) for c in zip(*split, strict=True)]
 
     # ------------------------------------------------------------------ rollout
     def _hidden(self, state: tuple[torch.Tensor, ...]) -> torch.Tensor:
@@ -320,28 +277,6 @@ class SocialRecurrent(nn.Module):
             return (self.cell(x, state[0]),)
         h, c = self.cell(x, state)
         return (h, c)
-
-    def _update_heading(
-        self, rel: torch.Tensor, heading: torch.Tensor, heading_ok: torch.Tensor
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        speed = rel.norm(dim=1, keepdim=True)
-        moving = speed[:, 0] > self.config.min_speed
-        new = torch.where(moving[:, None], rel / speed.clamp_min(1e-9), heading)
-        return new, heading_ok | moving
-
-    def _headings(self, rel: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """:meth:`_update_heading` applied along ``rel (N, T, 2)`` from ``(1, 0)``, unrolled.
-
-        The heading at step ``t`` is the unit vector of the latest displacement faster than ``min_speed``
-        up to ``t`` (found with a running maximum over step indices), ``(1, 0)`` before any.
-        """
-        speed = rel.norm(dim=2, keepdim=True)
-        unit = rel / speed.clamp_min(1e-9)
-        steps = torch.arange(rel.shape[1], device=rel.device).expand(rel.shape[0], -1)
-        last = torch.where(speed[..., 0] > self.config.min_speed, steps, -1).cummax(dim=1).values
-        ok = last >= 0
-        heading = torch.gather(unit, 1, last.clamp_min(0)[..., None].expand(-1, -1, 2))
-        return torch.where(ok[..., None], heading, unit.new_tensor([1.0, 0.0])), ok
 
     def rollout(
         self,
@@ -375,22 +310,17 @@ class SocialRecurrent(nn.Module):
             weights += self.cell.fused_weights()
         h0 = obs.new_zeros(n, self.config.hidden_size)
         state: tuple[torch.Tensor, ...] = (h0,) if self.config.kind in ("s-cgru", "s-gru") else (h0, h0)
-        # The observed steps' inputs do not depend on the state: displacements, their embeddings, headings
-        # and pooling layouts are computed for all of them at once (generic; the same for every model).
+        # The observed steps' displacements and embeddings do not depend on the state: computed at once.
         rel_obs = torch.cat([obs.new_zeros(n, 1, 2), obs[:, 1:] - obs[:, :-1]], dim=1)
         emb_obs = torch.relu(self.input_embed(rel_obs))
-        heading_obs, ok_obs = self._headings(rel_obs)
-        groups_obs: list[PoolGroups] = [None]  # step 0 pools all-zero states: the bias alone
-        if self.pooling:
-            groups_obs += self.observed_pooling(obs, heading_obs, ok_obs, pairs)
-        heading, heading_ok = heading_obs[:, -1], ok_obs[:, -1]
+        looks = HeadingTracker(self.pooling_geometry(), pairs, n, obs.dtype) if self.pooling else None
         pos = obs[:, -1]
         hidden_obs: list[torch.Tensor] = []
         outs: list[torch.Tensor] = []
         fed: list[torch.Tensor] = []
         for t in range(OBS_LEN + pred_len - 1):
             if t < OBS_LEN:
-                rel, x, groups = rel_obs[:, t], emb_obs[:, t], groups_obs[t] if self.pooling else None
+                rel, x, here = rel_obs[:, t], emb_obs[:, t], obs[:, t]
             else:
                 if future is not None:
                     new_pos = future[:, t - OBS_LEN]
@@ -400,11 +330,11 @@ class SocialRecurrent(nn.Module):
                     new_pos = pos + outs[-1][:, :2]
                 rel, pos = new_pos - pos, new_pos
                 fed.append(pos)
-                heading, heading_ok = self._update_heading(rel, heading, heading_ok)
-                x = torch.relu(self.input_embed(rel))
-                groups = None
-                if self.pooling:
-                    groups = self.pool_groups(self.pool_cells(pos, heading, heading_ok, pairs))
+                x, here = torch.relu(self.input_embed(rel)), pos
+            groups = None
+            if looks is not None and t > 0:  # step 0 pools all-zero states: the bias alone
+                looks.advance(rel)
+                groups = self.pool_groups(looks.layout(here))
             state = self._step(x, groups, state, weights)
             if 0 < t < OBS_LEN - 1:  # nothing is fed back from these: one batched head after the loop
                 hidden_obs.append(self._hidden(state))

@@ -73,10 +73,10 @@ class TrainConfig:
     """Gradient-norm clip."""
     threads: int = 1
     """torch intra-op threads (1 on the shared 2-core machine)."""
-    hidden_size: int = 64
-    """Real width of the recurrent state (S-CGRU: twice its complex units); the paper uses 128."""
-    embed_size: int = 32
-    """Width of the displacement and social-tensor embeddings; the paper uses 64."""
+    hidden_size: int = 128
+    """Real width of the recurrent state (S-CGRU: twice its complex units); 128 as in the papers."""
+    embed_size: int = 64
+    """Width of the displacement and social-tensor embeddings; 64 as in the papers."""
     cv_residual: int = 1
     """1: learned models predict a correction to the last displacement (constant-velocity prior)."""
     nll_beta: float = 1.0

@@ -18,6 +18,7 @@ from predictors.models import (
     sample_gaussian,
     window_pairs,
 )
+from predictors.pooling import HeadingTracker, grid_layout
 
 
 def _scene(n_windows: int = 3, seed: int = 0) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
@@ -169,20 +170,62 @@ def test_models_train_sample_and_are_deterministic(kind: str) -> None:
             m.sample(obs, sse, 2, torch.Generator(), mode="magic")
 
 
-def test_unrolled_headings_equal_the_step_by_step_update() -> None:
+def test_heading_tracker_follows_the_latest_fast_displacement() -> None:
     m = SocialRecurrent(ModelConfig(kind="s-cgru", hidden_size=4, embed_size=4, pool_frame="heading"))
     g = torch.Generator().manual_seed(5)
     rel = torch.randn(6, 8, 2, generator=g) * 0.05  # about half the steps slower than min_speed
     rel[:, 0] = 0.0
     rel[0, 1:4] = 0.01  # pedestrian 0 has no heading before step 4
     rel[1, 5:] = 0.0  # pedestrian 1 stops and keeps its heading
-    heading, ok = m._headings(rel)
-    h, o = torch.tensor([[1.0, 0.0]]).repeat(6, 1), torch.zeros(6, dtype=torch.bool)
-    for t in range(1, 8):
-        h, o = m._update_heading(rel[:, t], h, o)
-        torch.testing.assert_close(heading[:, t], h)
-        assert torch.equal(ok[:, t], o)
-    assert not bool(ok[:, 0].any()) and bool(ok.any()) and bool((~ok[:, 1]).any())
+    looks = HeadingTracker(m.pooling_geometry(), torch.empty(2, 0, dtype=torch.long), 6, torch.float32)
+    for t in range(8):
+        looks.advance(rel[:, t])
+        for i in range(6):  # reference: the unit vector of the latest step faster than min_speed
+            fast = [s for s in range(t + 1) if float(rel[i, s].norm()) > m.config.min_speed]
+            assert bool(looks.known[i]) == bool(fast)
+            want = rel[i, fast[-1]] / rel[i, fast[-1]].norm() if fast else torch.tensor([1.0, 0.0])
+            torch.testing.assert_close(torch.from_numpy(looks.heading[i]), want)
+        if t == 1:  # the cases the test is built for: some known after one step, not all
+            assert bool(looks.known.any()) and not bool(looks.known.all())
+
+
+def _reference_cells(
+    m: SocialRecurrent, pos: torch.Tensor, heading: torch.Tensor, ok: torch.Tensor, pairs: torch.Tensor
+) -> set[tuple[int, int, int]]:
+    """The pooling cells written independently with torch ops (the formulation before the kernel)."""
+    c = m.config
+    i, j = pairs
+    d = pos[j] - pos[i]
+    if c.pool_frame == "heading":
+        u = heading[i]
+        d = torch.stack([d[:, 0] * u[:, 0] + d[:, 1] * u[:, 1], d[:, 1] * u[:, 0] - d[:, 0] * u[:, 1]], 1)
+    cxy = torch.floor((d + c.neighborhood / 2) / (c.neighborhood / c.grid_size))
+    keep = ((cxy >= 0) & (cxy <= c.grid_size - 1)).all(1)
+    if c.fov_deg < 360.0:
+        keep &= ~ok[i] | (torch.atan2(d[:, 1], d[:, 0]).abs() <= math.radians(c.fov_deg) / 2)
+    cell = (cxy[:, 1] * c.grid_size + cxy[:, 0]).long()
+    return set(zip(i[keep].tolist(), j[keep].tolist(), cell[keep].tolist(), strict=True))
+
+
+@pytest.mark.parametrize(("frame", "fov"), [("world", 360.0), ("heading", 360.0), ("heading", 120.0)])
+def test_compiled_layout_matches_a_torch_reference_and_packs_slots(frame: str, fov: float) -> None:
+    cfg = ModelConfig(kind="s-gru", hidden_size=6, embed_size=5, fov_deg=fov, pool_frame=frame)
+    m = SocialRecurrent(cfg)
+    g = torch.Generator().manual_seed(11)
+    sse = torch.tensor([[0, 5], [5, 9], [9, 20]])
+    pos = torch.rand(20, 2, generator=g) * 5.0
+    heading = torch.nn.functional.normalize(torch.randn(20, 2, generator=g), dim=1)
+    ok = torch.rand(20, generator=g) > 0.3
+    pairs = torch.stack(window_pairs(sse, 20))
+    i, j, cell, slot, most, used = grid_layout(m.pooling_geometry(), pos, heading, ok, pairs)
+    got = set(zip(i.tolist(), j.tolist(), cell.tolist(), strict=True))
+    assert got == _reference_cells(m, pos, heading, ok, pairs) and len(got) > 10
+    # slots: one row per pair in a (len(used), most) buffer, grouped by cell, no empty cell kept
+    assert used.tolist() == sorted(set(cell.tolist()))
+    assert len(set(slot.tolist())) == slot.numel() and int(slot.max()) < used.numel() * most
+    place = {c: k for k, c in enumerate(used.tolist())}
+    assert all(s // most == place[c] for s, c in zip(slot.tolist(), cell.tolist(), strict=True))
+    assert most == max(cell.tolist().count(c) for c in used.tolist())
 
 
 def test_prediction_of_one_window_ignores_other_windows() -> None:
@@ -284,24 +327,14 @@ def test_pooled_embedding_equals_dense_social_tensor(frame: str) -> None:
     pairs = window_pairs(sse, pos.shape[0])
     dense = m.pool_embed(m.social_pool(pos, heading, ok, state, pairs))
     assert int((m.social_pool(pos, heading, ok, state, pairs) != 0).any(1).sum()) > 3  # pooling happens
-    groups = m.pool_groups(m.pool_cells(pos, heading, ok, pairs))
+    geometry = m.pooling_geometry()
+    groups = m.pool_groups(grid_layout(geometry, pos, heading, ok, torch.stack(pairs)))
     got = m.pooled_embedding(state, groups, m.pool_weights())
     torch.testing.assert_close(got, dense, atol=1e-5, rtol=1e-5)
     # nobody in anyone's grid: no layout, just the bias
-    assert m.pool_groups(m.pool_cells(pos * 100.0, heading, ok, pairs)) is None
+    assert m.pool_groups(grid_layout(geometry, pos * 100.0, heading, ok, torch.stack(pairs))) is None
     far = m.pooled_embedding(state, None, m.pool_weights())
     torch.testing.assert_close(far, m.pool_embed.bias.expand_as(far))
-    # the observed steps' layouts, built in one pass, equal the step-by-step ones
-    obs_h, obs_ok = m._headings(torch.cat([obs[:, :1] * 0.0, obs[:, 1:] - obs[:, :-1]], dim=1))
-    batched = m.observed_pooling(obs * 0.4, obs_h, obs_ok, pairs)
-    for t, b in enumerate(batched, start=1):
-        one = m.pool_groups(m.pool_cells(obs[:, t] * 0.4, obs_h[:, t], obs_ok[:, t], pairs))
-        assert (b is None) == (one is None)
-        if b is not None and one is not None:
-            torch.testing.assert_close(
-                m.pooled_embedding(state, b, m.pool_weights()),
-                m.pooled_embedding(state, one, m.pool_weights()),
-            )
 
 
 SHIPPED = Path(__file__).resolve().parents[1] / "predictors" / "weights"

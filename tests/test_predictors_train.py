@@ -56,6 +56,26 @@ def test_train_cli_bad_input_exits_nonzero(
     assert "hotel" in capsys.readouterr().err
 
 
+def test_train_all_runs_in_parallel_and_reports_a_failed_run(
+    data_root: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    from predictors import train_all
+
+    out = tmp_path / "w"
+    args = ["--data", str(data_root), "--out-dir", str(out), "--epochs", "1", "--jobs", "2"]
+    # hotel has no data in this root: that run fails, the other two still finish
+    assert train_all.main([*args, "--models", "s-cgru,lstm", "--scenes", "eth,hotel"]) == 1
+    printed = capsys.readouterr().out
+    for name in ("s-cgru_eth", "lstm_eth"):
+        assert load_model(out / f"{name}.pt").config.kind == name.split("_")[0]
+        assert "epoch 1" in (out / f"{name}.log").read_text()
+        assert f"{name}.pt: epochs 1" in printed
+    assert "s-cgru_hotel: FAILED" in printed and "lstm_hotel: FAILED" in printed
+    assert not (out / "s-cgru_hotel.pt").exists()
+    assert train_all.main([*args, "--models", "transformer"]) == 2
+    assert "transformer" in capsys.readouterr().err
+
+
 def test_checkpoint_roundtrip_and_clear_errors(tmp_path: Path) -> None:
     m = SocialRecurrent(default_config("s-cgru"))
     path = tmp_path / "ok.pt"

@@ -1,0 +1,90 @@
+"""Train every model kind on every leave-one-out scene (and SDD) at once, one process per run.
+
+Run: ``python -m predictors.train_all [--jobs 16] [--minutes 3] [--out-dir DIR] [--models ...] [--scenes ...]
+[--hidden-size 128 --embed-size 64]``.
+
+Each run is one :func:`predictors.train.train` with one torch thread and its own wall-clock budget, so
+a machine with ``jobs`` free cores trains the whole table in about ``ceil(runs / jobs)`` budgets. A run's
+output goes to ``<out-dir>/<model>_<scene>.log``; a failed run is reported and the others go on.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import multiprocessing
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
+from pathlib import Path
+
+from predictors.data import SCENES
+from predictors.models import MODEL_KINDS
+from predictors.train import WEIGHTS_DIR, TrainConfig, checkpoint_meta, train
+
+
+def _run(cfg: TrainConfig, log: Path) -> str:
+    """One training run in a worker process, its output to ``log``; a one-line summary."""
+    with log.open("w") as f, contextlib.redirect_stdout(f), contextlib.redirect_stderr(f):
+        out = train(cfg)
+    meta = checkpoint_meta(out)
+    return (
+        f"{out.name}: epochs {meta.get('epochs_run')}, best {meta.get('best_epoch')}, val ADE/FDE "
+        f"{float(meta['val_ade']):.3f}/{float(meta['val_fde']):.3f}, scale {meta.get('sample_scale')}, "
+        f"{meta.get('wall_s')} s"
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Console entry point."""
+    p = argparse.ArgumentParser(prog="python -m predictors.train_all", description=__doc__.splitlines()[0])
+    p.add_argument("--models", default=",".join(MODEL_KINDS), help=f"comma list from {MODEL_KINDS}")
+    p.add_argument("--scenes", default=",".join((*SCENES, "sdd")), help="comma list of training scenes")
+    p.add_argument("--jobs", type=int, default=2, help="runs at once (one torch thread each)")
+    p.add_argument("--minutes", type=float, default=TrainConfig.max_minutes, help="budget of each run")
+    p.add_argument("--out-dir", default=str(WEIGHTS_DIR), help="where checkpoints and logs go")
+    p.add_argument("--data", default="", help="data root (default $CROSSING_DATA or ../shared/data)")
+    p.add_argument("--hidden-size", type=int, default=TrainConfig.hidden_size)
+    p.add_argument("--embed-size", type=int, default=TrainConfig.embed_size)
+    p.add_argument("--seed", type=int, default=TrainConfig.seed)
+    p.add_argument("--epochs", type=int, default=TrainConfig.epochs, help="maximum epochs of each run")
+    a = p.parse_args(argv)
+    models = [m for m in a.models.split(",") if m]
+    scenes = [s for s in a.scenes.split(",") if s]
+    problems = [f"--models: unknown {m!r}" for m in models if m not in MODEL_KINDS]
+    problems += [f"--scenes: unknown {s!r}" for s in scenes if s not in (*SCENES, "sdd", "all")]
+    problems += [f"--jobs must be >= 1, got {a.jobs}"] if a.jobs < 1 else []
+    if problems:
+        print(f"predictors.train_all: error: {'; '.join(problems)}", file=sys.stderr)
+        return 2
+    out_dir = Path(a.out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    base = TrainConfig(
+        data=a.data,
+        max_minutes=a.minutes,
+        hidden_size=a.hidden_size,
+        embed_size=a.embed_size,
+        seed=a.seed,
+        epochs=a.epochs,
+        threads=1,
+    )
+    runs = {
+        f"{m}_{s}": replace(base, model=m, scene=s, out=str(out_dir / f"{m}_{s}.pt"))
+        for s in scenes
+        for m in models
+    }
+    failed = 0
+    context = multiprocessing.get_context("spawn")  # no forked torch/numba thread state in the workers
+    with ProcessPoolExecutor(max_workers=a.jobs, mp_context=context) as pool:
+        futures = {name: pool.submit(_run, cfg, out_dir / f"{name}.log") for name, cfg in runs.items()}
+        for name, fut in futures.items():
+            try:
+                print(fut.result(), flush=True)
+            except Exception as exc:  # report every failed run, keep the others
+                failed += 1
+                print(f"{name}: FAILED ({type(exc).__name__}: {exc}); see {out_dir / name}.log", flush=True)
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
