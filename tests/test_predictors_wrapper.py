@@ -115,7 +115,7 @@ def test_bad_env_and_bad_path_errors(tmp_path: Any) -> None:
 
 @needs_weights
 def test_unchanged_history_is_served_from_the_cache_identically() -> None:
-    """Speed is measured in benchmarks/predictor_models.py; here only the cache's correctness."""
+    """Speed is measured in benchmarks/predictors.py; here only the cache's correctness."""
     base = FakePedEnv(n_present=K)
     env = TrajectoryPrediction(base)
     env.reset(seed=0)

@@ -1,31 +1,47 @@
 """Parameter counts and per-batch inference latency of S-CGRU, S-GRU and S-LSTM (the seed paper's Table 2).
 
-Run: ``python benchmarks/predictor_models.py [--repeats 30] [--threads 1] [--rollout-steps 150]
+Run: ``python benchmarks/predictors.py [--repeats 30] [--rounds 3] [--threads 1] [--rollout-steps 150]
 [--fov-sweep --scene eth]``.
 
 Latencies are measured in one process as CPU time of the calling thread (``time.thread_time``, torch and
 the wrapper single-threaded), so that other processes on a shared machine inflate them less than wall
-time; the models are interleaved round-robin, and the median and minimum over repeats are reported with
-ratios to S-LSTM of the same size, plus the median of the per-round (paired) ratios. The batch is
-the ETH test set (70 windows, 181 pedestrians) when the data is present, else a synthetic batch of the
-same shape. ``--fov-sweep`` trains a short S-CGRU run per field of view and reports *validation* ADE/FDE
-(never test), the analogue of the paper's Table 3.
+time; the models are interleaved round-robin, and ratios are to S-LSTM of the same size measured in the
+same rounds ("paired": the median over rounds of the ratio within a round, which cancels load that
+drifts between rounds). Two batch sets:
+
+* the ETH test set as one batch (70 windows, 181 pedestrians; a synthetic batch of that shape without the
+  data), with freshly initialised models at the paper's size, two controls and the half width;
+* the shipped leave-one-out checkpoints on their own test scenes, batched as ``predictors.evaluate``
+  batches them (whole windows, at most 256 pedestrians), ``--batches`` evenly spaced batches per scene.
+
+``--fov-sweep`` trains a short S-CGRU run per field of view and reports *validation* ADE/FDE (never
+test), the analogue of the paper's Table 3.
 """
 
 from __future__ import annotations
 
 import argparse
 import statistics
+import sys
 import time
 from dataclasses import replace
 from pathlib import Path
 
-import numpy as np
-import torch
-from torch import nn
+# This script shares its name with the ``predictors`` package. Run as ``python benchmarks/predictors.py``
+# its own folder comes first on ``sys.path`` and would shadow the package, so it is taken off.
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
 
-from predictors.data import default_data_root, load_split, to_batch
-from predictors.models import ModelConfig, SocialRecurrent, count_parameters, default_config
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+from torch import nn  # noqa: E402
+
+from predictors.data import SCENES, default_data_root, iterate_batches, load_split, to_batch  # noqa: E402
+from predictors.models import (  # noqa: E402
+    ModelConfig,
+    SocialRecurrent,
+    count_parameters,
+    default_config,
+)
 
 
 def equal_dof_gru_hidden(target: int) -> int:
@@ -35,6 +51,11 @@ def equal_dof_gru_hidden(target: int) -> int:
         key=lambda h: abs(count_parameters(SocialRecurrent(ModelConfig("s-gru", h)))[0] - target),
     )
     return best
+
+
+SHIPPED_KINDS = ("s-lstm", "s-gru", "s-cgru")
+HALF = "half width h=64, e=32"
+"""Label of the models at the wrapper default's size (``s-cgru_all.pt``)."""
 
 
 def batch(data: Path) -> tuple[torch.Tensor, torch.Tensor, str]:
@@ -65,6 +86,71 @@ def time_models(
                 m.predict(obs, sse)
                 times[k].append(time.thread_time() - t0)
     return times
+
+
+def shipped_latency(data: Path, per_scene: int, rounds: int) -> dict[str, dict[str, object]] | None:
+    """CPU seconds per batch of the shipped S-LSTM, S-GRU and S-CGRU checkpoints on their own test scenes.
+
+    Batches are whole windows of at most 256 pedestrians, as ``predictors.evaluate`` runs them;
+    ``per_scene`` evenly spaced batches of each scene, every model on each batch in turn, ``rounds``
+    times. ``None`` if a checkpoint or a test split is missing.
+    """
+    from predictors.train import WEIGHTS_DIR, load_model
+
+    out: dict[str, dict[str, object]] = {}
+    for scene in SCENES:
+        paths = {k: WEIGHTS_DIR / f"{k}_{scene}.pt" for k in SHIPPED_KINDS}
+        if not all(p.is_file() for p in paths.values()):
+            return None
+        try:
+            every = list(iterate_batches(load_split(data, scene, "test"), 256))
+        except FileNotFoundError:
+            return None
+        pick = np.unique(np.linspace(0, len(every) - 1, per_scene).round().astype(int))
+        batches = [every[i] for i in pick]
+        models = {k: load_model(p).eval() for k, p in paths.items()}
+        times: dict[str, list[float]] = {k: [] for k in models}
+        with torch.inference_mode():
+            for m in models.values():  # untimed warm-up
+                m.predict(batches[0].obs, batches[0].seq_start_end)
+            for _ in range(rounds):
+                for b in batches:
+                    for k, m in models.items():
+                        t0 = time.thread_time()
+                        m.predict(b.obs, b.seq_start_end)
+                        times[k].append(time.thread_time() - t0)
+        peds = float(np.mean([b.obs.shape[0] for b in batches]))
+        out[scene] = {"batches": len(batches), "of": len(every), "peds": peds, "times": times}
+    return out
+
+
+def print_shipped_latency(res: dict[str, dict[str, object]], rounds: int, threads: int) -> None:
+    """Per scene and over all scenes: mean ms per batch, ratio of means and paired ratio to S-LSTM."""
+    print(
+        f"\nShipped leave-one-out checkpoints (hidden 128, embedding 64) on their test scenes, most-likely"
+        f" rollout, batches of <= 256 pedestrians as in predictors.evaluate, {rounds} round(s),"
+        f" {threads} thread(s); ms per batch (ratio of means to S-LSTM, paired ratio):"
+    )
+    pooled: dict[str, list[float]] = {k: [] for k in SHIPPED_KINDS}
+    for scene, r in res.items():
+        times: dict[str, list[float]] = r["times"]  # type: ignore[assignment]
+        cells = []
+        for k in SHIPPED_KINDS:
+            pooled[k] += times[k]
+            mean = statistics.fmean(times[k])
+            ratio = mean / statistics.fmean(times["s-lstm"])
+            paired = statistics.median(t / b for t, b in zip(times[k], times["s-lstm"], strict=True))
+            cells.append(f"{k} {mean * 1e3:6.1f} ({ratio:.2f}, {paired:.2f})")
+        print(
+            f"  {scene:6s} {r['batches']:2d} of {r['of']:3d} batches, {r['peds']:5.0f} peds: "
+            + "  ".join(cells)
+        )
+    total = {k: sum(v) for k, v in pooled.items()}
+    cells = []
+    for k in SHIPPED_KINDS:
+        paired = statistics.median(t / b for t, b in zip(pooled[k], pooled["s-lstm"], strict=True))
+        cells.append(f"{k} {total[k] / total['s-lstm']:.2f} (paired {paired:.2f})")
+    print("  all scenes, ratio of total time to S-LSTM: " + "  ".join(cells))
 
 
 def wrapper_ms(k: int = 16, repeats: int = 200) -> tuple[float, float] | None:
@@ -219,6 +305,10 @@ def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--repeats", type=int, default=30)
     p.add_argument("--threads", type=int, default=1)
+    p.add_argument("--rounds", type=int, default=3, help="rounds over the shipped checkpoints' test batches")
+    p.add_argument(
+        "--batches", type=int, default=12, help="test batches per scene for the shipped checkpoints"
+    )
     p.add_argument("--data", default="")
     p.add_argument("--fov-sweep", action="store_true")
     p.add_argument("--scene", default="eth")
@@ -240,8 +330,8 @@ def main() -> None:
     h_eq = equal_dof_gru_hidden(count_parameters(cg)[1])
     models[f"s-gru (h={h_eq}, equal DoF)"] = SocialRecurrent(ModelConfig("s-gru", h_eq))
     models["s-cgru (128 complex units)"] = SocialRecurrent(replace(default_config("s-cgru"), hidden_size=256))
-    for k in ("s-lstm", "s-gru", "s-cgru"):  # the compact size trained and shipped in predictors/weights
-        models[f"{k} (trained size h=64, e=32)"] = SocialRecurrent(
+    for k in SHIPPED_KINDS:  # the size of the wrapper's default model, s-cgru_all.pt
+        models[f"{k} ({HALF})"] = SocialRecurrent(
             replace(default_config(k), hidden_size=64, embed_size=32, cv_residual=True)
         )
     print("Parameters (numel / real degrees of freedom):")
@@ -255,18 +345,22 @@ def main() -> None:
     obs, sse, label = batch(data)
     times = time_models(models, obs, sse, a.repeats)
     print(
-        f"\nInference CPU time per batch, most-likely 12-step rollout, {label}, {a.threads} thread(s),"
+        f"\nInference CPU time per batch, most-likely 12-step rollout, {label}, freshly initialised models,"
+        f" {a.threads} thread(s),"
         f" {a.repeats} repeats (ratios to S-LSTM of the same size; 'paired': median over rounds of the"
         f" ratio within a round, which cancels load that drifts between rounds):"
     )
     for k, v in times.items():
-        base = times["s-lstm"] if "trained" not in k else times["s-lstm (trained size h=64, e=32)"]
+        base = times[f"s-lstm ({HALF})"] if HALF in k else times["s-lstm"]
         med, low = statistics.median(v) * 1e3, min(v) * 1e3
         paired = statistics.median(t / b for t, b in zip(v, base, strict=True))
         print(
             f"  {k:32s} median {med:7.2f} ms (ratio {med / (statistics.median(base) * 1e3):.2f})"
             f"   min {low:7.2f} ms (ratio {low / (min(base) * 1e3):.2f})   paired ratio {paired:.2f}"
         )
+    shipped = shipped_latency(data, a.batches, a.rounds) if a.rounds else None
+    if shipped is not None:
+        print_shipped_latency(shipped, a.rounds, a.threads)
     wm = wrapper_ms()
     if wm is not None:
         print(
