@@ -317,6 +317,8 @@ def main() -> None:
         "--rollout-steps", type=int, default=150, help="env steps per wrapper rollout episode (0: skip)"
     )
     a = p.parse_args()
+    if a.batches < 1 or a.rounds < 0 or a.repeats < 1:
+        p.error("--batches and --repeats must be >= 1 and --rounds >= 0")
     torch.set_num_threads(a.threads)
     torch.manual_seed(0)
     data = Path(a.data) if a.data else default_data_root()
@@ -361,6 +363,11 @@ def main() -> None:
     shipped = shipped_latency(data, a.batches, a.rounds) if a.rounds else None
     if shipped is not None:
         print_shipped_latency(shipped, a.rounds, a.threads)
+    elif a.rounds:
+        print(
+            f"\nShipped checkpoints not timed: a checkpoint in predictors/weights or a test split in {data}"
+            " is missing"
+        )
     wm = wrapper_ms()
     if wm is not None:
         print(

@@ -3,7 +3,7 @@
 Why: at 16 pedestrians the torch rollout (19 recurrent steps, about 70 tiny ops each) is dominated by
 per-op dispatch cost (several microseconds per op), far above the wrapper's 2 ms budget. This path handles
 one window (all present pedestrians), uses dense ``N x N`` pooling (the same cells and sector test as
-:meth:`SocialRecurrent.pool_cells`), and is tested to match the torch model to float32 rounding. Sampling
+:func:`predictors.pooling._grid_layout`), and is tested to match the torch model to float32 rounding. Sampling
 still goes through torch.
 """
 

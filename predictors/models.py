@@ -71,6 +71,8 @@ class ModelConfig:
             raise ValueError(f"ModelConfig.pool_frame must be 'world' or 'heading', got {self.pool_frame!r}")
         if self.kind == "s-cgru" and self.hidden_size % 2:
             raise ValueError(f"ModelConfig.hidden_size must be even for s-cgru, got {self.hidden_size}")
+        if not self.min_speed >= 0.0:
+            raise ValueError(f"ModelConfig.min_speed must be >= 0, got {self.min_speed}")
         if not 0.0 < self.fov_deg <= 360.0:
             raise ValueError(f"ModelConfig.fov_deg must be in (0, 360], got {self.fov_deg}")
         if self.fov_deg < 360.0 and self.pool_frame != "heading":
@@ -89,8 +91,11 @@ def default_config(kind: str, fov_deg: float = 120.0) -> ModelConfig:
 
 
 def window_pairs(seq_start_end: torch.Tensor, num_peds: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """All ordered pairs ``(i, j)``, ``i != j``, of pedestrians in the same window (vectorised)."""
-    sse = seq_start_end.to(torch.long)
+    """All ordered pairs ``(i, j)``, ``i != j``, of pedestrians in the same window (vectorised).
+
+    Built on the CPU whatever the batch's device: the compiled pooling layout reads them there.
+    """
+    sse = seq_start_end.to("cpu", torch.long)
     sizes = sse[:, 1] - sse[:, 0]
     group = torch.repeat_interleave(torch.arange(len(sse)), sizes)
     if group.numel() != num_peds:
@@ -240,9 +245,10 @@ class SocialRecurrent(nn.Module):
         over ``G*G`` cells), yet the dense form zero-fills it and multiplies all of it (as many
         multiply-adds as an LSTM cell at ``H = 128``). By linearity ``pool_embed(S)_i = b + sum W_c h_j``
         over the neighbours ``j`` of ``i`` (``c`` the cell of ``j``), so the neighbours' states are grouped
-        by cell (:meth:`pool_groups`) into a padded ``(G*G, M, H)`` buffer (``M`` the most pairs in one
-        cell) and multiplied with each cell's weight (:meth:`pool_weights`) in one batched matmul. Equal to
-        the dense form up to float summation order. Shared by every model kind.
+        by cell (:meth:`pool_groups`) into a padded ``(C, M, H)`` buffer (``C`` the cells holding a pair,
+        ``M`` the most pairs in one cell) and multiplied with those cells' weights (:meth:`pool_weights`)
+        in one batched matmul. Equal to the dense form up to float summation order. Shared by every model
+        kind.
         """
         bias = self.pool_embed.bias.expand(state.shape[0], -1)
         if groups is None:
@@ -302,7 +308,6 @@ class SocialRecurrent(nn.Module):
             the fed-back absolute positions (means, samples or the teacher).
         """
         n = obs.shape[0]
-        pairs = torch.stack(window_pairs(seq_start_end, n)) if self.pooling else torch.empty(2, 0)
         # Per-rollout weight preparation: per-cell pooling weights (all pooling models) and the S-CGRU's
         # folded matrices (see ComplexGRUCell.fused_weights).
         weights: tuple[torch.Tensor, ...] = (self.pool_weights(),) if self.pooling else (obs.new_empty(0),)
@@ -313,7 +318,10 @@ class SocialRecurrent(nn.Module):
         # The observed steps' displacements and embeddings do not depend on the state: computed at once.
         rel_obs = torch.cat([obs.new_zeros(n, 1, 2), obs[:, 1:] - obs[:, :-1]], dim=1)
         emb_obs = torch.relu(self.input_embed(rel_obs))
-        looks = HeadingTracker(self.pooling_geometry(), pairs, n, obs.dtype) if self.pooling else None
+        looks = None
+        if self.pooling:
+            pairs = torch.stack(window_pairs(seq_start_end, n))
+            looks = HeadingTracker(self.pooling_geometry(), pairs, n, obs.dtype)
         pos = obs[:, -1]
         hidden_obs: list[torch.Tensor] = []
         outs: list[torch.Tensor] = []

@@ -126,6 +126,14 @@ def _layout(
     return i, j, cell, slot, int(most), used
 
 
+def _check_pairs(pairs: torch.Tensor, count: int) -> None:
+    """The kernel does no bounds checks: refuse pairs that index outside the ``count`` pedestrians."""
+    if pairs.ndim != 2 or pairs.shape[0] != 2:
+        raise ValueError(f"pairs must have shape (2, P), got {tuple(pairs.shape)}")
+    if pairs.numel() and not (0 <= int(pairs.min()) and int(pairs.max()) < count):
+        raise ValueError(f"pairs index pedestrians outside 0..{count - 1}")
+
+
 def grid_layout(
     geometry: PoolingGeometry,
     pos: torch.Tensor,
@@ -142,6 +150,7 @@ def grid_layout(
         known: ``(N,)`` whether a pedestrian's heading is known (else it pools over the whole grid).
         pairs: ``(2, P)`` candidate ordered pairs ``(i, j)`` (same window, ``i != j``).
     """
+    _check_pairs(pairs, pos.shape[0])
     arrays = (_numpy(t) for t in (pos, heading, known, pairs))
     return _layout(geometry, *arrays, pos.device)
 
@@ -157,6 +166,7 @@ class HeadingTracker:
     def __init__(
         self, geometry: PoolingGeometry, pairs: torch.Tensor, count: int, dtype: torch.dtype
     ) -> None:
+        _check_pairs(pairs, count)
         self.geometry = geometry
         self.pairs = _numpy(pairs)
         npdtype = torch.empty(0, dtype=dtype).numpy().dtype

@@ -5,7 +5,8 @@ Run: ``python -m predictors.train_all [--jobs 16] [--minutes 3] [--out-dir DIR] 
 
 Each run is one :func:`predictors.train.train` with one torch thread and its own wall-clock budget, so
 a machine with ``jobs`` free cores trains the whole table in about ``ceil(runs / jobs)`` budgets. A run's
-output goes to ``<out-dir>/<model>_<scene>.log``; a failed run is reported and the others go on.
+output (its traceback too, if it fails) goes to ``<log-dir>/<model>_<scene>.log``; a failed run is
+reported and the others go on. Ctrl-C cancels the runs not yet started.
 """
 
 from __future__ import annotations
@@ -14,7 +15,8 @@ import argparse
 import contextlib
 import multiprocessing
 import sys
-from concurrent.futures import ProcessPoolExecutor
+import traceback
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import replace
 from pathlib import Path
 
@@ -26,7 +28,11 @@ from predictors.train import WEIGHTS_DIR, TrainConfig, checkpoint_meta, train
 def _run(cfg: TrainConfig, log: Path) -> str:
     """One training run in a worker process, its output to ``log``; a one-line summary."""
     with log.open("w") as f, contextlib.redirect_stdout(f), contextlib.redirect_stderr(f):
-        out = train(cfg)
+        try:
+            out = train(cfg)
+        except BaseException:
+            traceback.print_exc(file=f)
+            raise
     meta = checkpoint_meta(out)
     return (
         f"{out.name}: epochs {meta.get('epochs_run')}, best {meta.get('best_epoch')}, val ADE/FDE "
@@ -42,7 +48,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--scenes", default=",".join((*SCENES, "sdd")), help="comma list of training scenes")
     p.add_argument("--jobs", type=int, default=2, help="runs at once (one torch thread each)")
     p.add_argument("--minutes", type=float, default=TrainConfig.max_minutes, help="budget of each run")
-    p.add_argument("--out-dir", default=str(WEIGHTS_DIR), help="where checkpoints and logs go")
+    p.add_argument("--out-dir", default=str(WEIGHTS_DIR), help="where the checkpoints go")
+    p.add_argument("--log-dir", default="runs/train_all", help="where each run's log goes")
     p.add_argument("--data", default="", help="data root (default $CROSSING_DATA or ../shared/data)")
     p.add_argument("--hidden-size", type=int, default=TrainConfig.hidden_size)
     p.add_argument("--embed-size", type=int, default=TrainConfig.embed_size)
@@ -57,8 +64,9 @@ def main(argv: list[str] | None = None) -> int:
     if problems:
         print(f"predictors.train_all: error: {'; '.join(problems)}", file=sys.stderr)
         return 2
-    out_dir = Path(a.out_dir)
+    out_dir, log_dir = Path(a.out_dir), Path(a.log_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
+    log_dir.mkdir(parents=True, exist_ok=True)
     base = TrainConfig(
         data=a.data,
         max_minutes=a.minutes,
@@ -75,14 +83,21 @@ def main(argv: list[str] | None = None) -> int:
     }
     failed = 0
     context = multiprocessing.get_context("spawn")  # no forked torch/numba thread state in the workers
-    with ProcessPoolExecutor(max_workers=a.jobs, mp_context=context) as pool:
-        futures = {name: pool.submit(_run, cfg, out_dir / f"{name}.log") for name, cfg in runs.items()}
-        for name, fut in futures.items():
+    pool = ProcessPoolExecutor(max_workers=a.jobs, mp_context=context)
+    try:
+        futures = {pool.submit(_run, cfg, log_dir / f"{name}.log"): name for name, cfg in runs.items()}
+        for fut in as_completed(futures):
+            name = futures[fut]
             try:
                 print(fut.result(), flush=True)
             except Exception as exc:  # report every failed run, keep the others
                 failed += 1
-                print(f"{name}: FAILED ({type(exc).__name__}: {exc}); see {out_dir / name}.log", flush=True)
+                print(f"{name}: FAILED ({type(exc).__name__}: {exc}); see {log_dir / name}.log", flush=True)
+    except KeyboardInterrupt:
+        pool.shutdown(wait=False, cancel_futures=True)
+        print("interrupted: runs not yet started were cancelled", file=sys.stderr)
+        return 130
+    pool.shutdown()
     return 1 if failed else 0
 
 

@@ -226,6 +226,9 @@ def test_compiled_layout_matches_a_torch_reference_and_packs_slots(frame: str, f
     place = {c: k for k, c in enumerate(used.tolist())}
     assert all(s // most == place[c] for s, c in zip(slot.tolist(), cell.tolist(), strict=True))
     assert most == max(cell.tolist().count(c) for c in used.tolist())
+    # the kernel does no bounds checks, so the wrapper refuses pairs outside the batch
+    with pytest.raises(ValueError, match="outside"):
+        grid_layout(m.pooling_geometry(), pos, heading, ok, torch.tensor([[0], [20]]))
 
 
 def test_prediction_of_one_window_ignores_other_windows() -> None:
@@ -241,6 +244,8 @@ def test_prediction_of_one_window_ignores_other_windows() -> None:
 def test_config_validation() -> None:
     with pytest.raises(ValueError, match="kind"):
         ModelConfig(kind="transformer")
+    with pytest.raises(ValueError, match="min_speed"):
+        ModelConfig(min_speed=-0.1)
     with pytest.raises(ValueError, match="fov_deg"):
         ModelConfig(kind="s-gru", fov_deg=90.0)  # sector needs the heading frame
     with pytest.raises(ValueError, match="even"):

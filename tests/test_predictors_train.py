@@ -61,17 +61,29 @@ def test_train_all_runs_in_parallel_and_reports_a_failed_run(
 ) -> None:
     from predictors import train_all
 
-    out = tmp_path / "w"
-    args = ["--data", str(data_root), "--out-dir", str(out), "--epochs", "1", "--jobs", "2"]
+    out, logs = tmp_path / "w", tmp_path / "logs"
+    args = [
+        "--data",
+        str(data_root),
+        "--out-dir",
+        str(out),
+        "--log-dir",
+        str(logs),
+        "--epochs",
+        "1",
+        "--jobs",
+        "2",
+    ]
     # hotel has no data in this root: that run fails, the other two still finish
     assert train_all.main([*args, "--models", "s-cgru,lstm", "--scenes", "eth,hotel"]) == 1
     printed = capsys.readouterr().out
     for name in ("s-cgru_eth", "lstm_eth"):
         assert load_model(out / f"{name}.pt").config.kind == name.split("_")[0]
-        assert "epoch 1" in (out / f"{name}.log").read_text()
+        assert "epoch 1: train nll" in (logs / f"{name}.log").read_text()
         assert f"{name}.pt: epochs 1" in printed
     assert "s-cgru_hotel: FAILED" in printed and "lstm_hotel: FAILED" in printed
     assert not (out / "s-cgru_hotel.pt").exists()
+    assert "Traceback" in (logs / "s-cgru_hotel.log").read_text()  # the failed run's log says why
     assert train_all.main([*args, "--models", "transformer"]) == 2
     assert "transformer" in capsys.readouterr().err
 
