@@ -111,10 +111,15 @@ def run(
     seed: int = 0,
     weights_dir: Path = WEIGHTS_DIR,
 ) -> dict[str, object]:
-    """Evaluate ``models`` on ``scenes``; return a JSON-ready dict ``results[model][scene][metric]``."""
+    """Evaluate ``models`` on ``scenes``; return a JSON-ready dict ``results[model][scene][metric]``.
+
+    A scene's sample seed is ``seed + 1000 * k``, ``k`` its place in :data:`EVAL_SCENES` (not in
+    ``scenes``), so a scene evaluated alone or in parallel parts gives the numbers of the full run.
+    """
     results: dict[str, dict[str, object]] = {}
     counts: dict[str, list[int]] = {}
-    for si, scene in enumerate(scenes):
+    for scene in scenes:
+        si = EVAL_SCENES.index(scene)
         w = load_split(data_root, scene, "test")
         counts[scene] = [w.num_windows, w.num_peds]
         for name in models:

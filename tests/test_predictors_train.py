@@ -156,6 +156,20 @@ def test_evaluate_cli_json_on_synthetic_data(data_root: Path, capsys: pytest.Cap
     assert evaluate.main(["--data", str(data_root), "--scenes", "mars"]) == 2
 
 
+def test_evaluating_a_scene_alone_gives_the_full_runs_numbers(
+    data_root: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """Sample seeds follow the scene, not its place in ``--scenes`` (so runs can be split and merged)."""
+    _write_scene(data_root / "eth_ucy" / "hotel" / "test", "h_test.txt", seed=5)
+    runs = []
+    for scenes in ("eth,hotel", "hotel"):
+        args = ["--data", str(data_root), "--scenes", scenes, "--models", "cvm-s,kalman", "--json"]
+        assert evaluate.main(args) == 0
+        runs.append(json.loads(capsys.readouterr().out)["results"])
+    for model in ("cvm-s", "kalman"):
+        assert runs[0][model]["hotel"] == runs[1][model]["hotel"]
+
+
 class _RunsCode:
     """A pickle payload that would create a file when unpickled by a permissive loader."""
 
