@@ -72,19 +72,27 @@ def batch(data: Path) -> tuple[torch.Tensor, torch.Tensor, str]:
 
 
 def time_models(
-    models: dict[str, nn.Module], obs: torch.Tensor, sse: torch.Tensor, repeats: int
+    models: dict[str, nn.Module],
+    batches: list[tuple[torch.Tensor, torch.Tensor]],
+    rounds: int,
+    warmup: int = 3,
 ) -> dict[str, list[float]]:
-    """CPU seconds of each model's ``predict`` per round (models interleaved round-robin in each round)."""
+    """CPU seconds of each model's ``predict`` on each ``(obs, seq_start_end)`` batch, ``rounds`` times.
+
+    Every model runs on a batch before the next batch (interleaved round-robin), after ``warmup``
+    untimed runs of each on the first batch; the lists are in round-major, then batch order.
+    """
     times: dict[str, list[float]] = {k: [] for k in models}
     with torch.inference_mode():
         for m in models.values():
-            for _ in range(3):
-                m.predict(obs, sse)
-        for _ in range(repeats):
-            for k, m in models.items():
-                t0 = time.thread_time()
-                m.predict(obs, sse)
-                times[k].append(time.thread_time() - t0)
+            for _ in range(warmup):
+                m.predict(*batches[0])
+        for _ in range(rounds):
+            for obs, sse in batches:
+                for k, m in models.items():
+                    t0 = time.thread_time()
+                    m.predict(obs, sse)
+                    times[k].append(time.thread_time() - t0)
     return times
 
 
@@ -109,16 +117,7 @@ def shipped_latency(data: Path, per_scene: int, rounds: int) -> dict[str, dict[s
         pick = np.unique(np.linspace(0, len(every) - 1, per_scene).round().astype(int))
         batches = [every[i] for i in pick]
         models = {k: load_model(p).eval() for k, p in paths.items()}
-        times: dict[str, list[float]] = {k: [] for k in models}
-        with torch.inference_mode():
-            for m in models.values():  # untimed warm-up
-                m.predict(batches[0].obs, batches[0].seq_start_end)
-            for _ in range(rounds):
-                for b in batches:
-                    for k, m in models.items():
-                        t0 = time.thread_time()
-                        m.predict(b.obs, b.seq_start_end)
-                        times[k].append(time.thread_time() - t0)
+        times = time_models(models, [(b.obs, b.seq_start_end) for b in batches], rounds, warmup=1)
         peds = float(np.mean([b.obs.shape[0] for b in batches]))
         out[scene] = {"batches": len(batches), "of": len(every), "peds": peds, "times": times}
     return out
@@ -345,7 +344,7 @@ def main() -> None:
     print(f"  {'native complex GRUCell(128)':32s} {n:9,d} / {d:9,d}  (cell only, for reference)")
 
     obs, sse, label = batch(data)
-    times = time_models(models, obs, sse, a.repeats)
+    times = time_models(models, [(obs, sse)], a.repeats)
     print(
         f"\nInference CPU time per batch, most-likely 12-step rollout, {label}, freshly initialised models,"
         f" {a.threads} thread(s),"

@@ -108,17 +108,20 @@ def _numpy(t: torch.Tensor) -> np.ndarray:
     return t.detach().cpu().numpy()
 
 
+def _packed(g: PoolingGeometry, dtype: np.dtype) -> np.ndarray:
+    """``[half side, cell side, half field of view]`` as :func:`_grid_layout` takes it."""
+    return np.array([0.5 * g.neighborhood, g.neighborhood / g.grid, math.radians(g.fov_deg) / 2.0], dtype)
+
+
 def _layout(
     g: PoolingGeometry,
+    packed: np.ndarray,
     pos: np.ndarray,
     heading: np.ndarray,
     known: np.ndarray,
     pairs: np.ndarray,
     device: torch.device,
 ) -> Layout:
-    packed = np.array(
-        [0.5 * g.neighborhood, g.neighborhood / g.grid, math.radians(g.fov_deg) / 2.0], pos.dtype
-    )
     i, j, cell, slot, most, used = _grid_layout(
         pos, heading, known, pairs, packed, g.grid, g.heading_frame, g.fov_deg < 360.0
     )
@@ -151,8 +154,9 @@ def grid_layout(
         pairs: ``(2, P)`` candidate ordered pairs ``(i, j)`` (same window, ``i != j``).
     """
     _check_pairs(pairs, pos.shape[0])
-    arrays = (_numpy(t) for t in (pos, heading, known, pairs))
-    return _layout(geometry, *arrays, pos.device)
+    p = _numpy(pos)
+    arrays = (_numpy(t) for t in (heading, known, pairs))
+    return _layout(geometry, _packed(geometry, p.dtype), p, *arrays, pos.device)
 
 
 class HeadingTracker:
@@ -174,6 +178,7 @@ class HeadingTracker:
         self.heading[:, 0] = 1.0
         self.known = np.zeros(count, np.bool_)
         self._min_speed = npdtype.type(geometry.min_speed)
+        self._packed = _packed(geometry, npdtype)  # per rollout, not per step
 
     def advance(self, rel: torch.Tensor) -> None:
         """Update the headings with one step's displacements ``rel (N, 2)``."""
@@ -181,4 +186,6 @@ class HeadingTracker:
 
     def layout(self, pos: torch.Tensor) -> Layout:
         """The pooling layout at positions ``pos (N, 2)`` with the current headings."""
-        return _layout(self.geometry, _numpy(pos), self.heading, self.known, self.pairs, pos.device)
+        return _layout(
+            self.geometry, self._packed, _numpy(pos), self.heading, self.known, self.pairs, pos.device
+        )
