@@ -21,22 +21,30 @@ test), the analogue of the paper's Table 3.
 from __future__ import annotations
 
 import argparse
+import importlib
 import statistics
 import sys
 import time
 from dataclasses import replace
 from pathlib import Path
 
-# This script shares its name with the ``predictors`` package. Run as ``python benchmarks/predictors.py``
-# its own folder comes first on ``sys.path`` and would shadow the package, so it is taken off.
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
+if __name__ in ("__main__", "predictors"):
+    # This file shares its name with the ``predictors`` package. Any script run from this folder
+    # (``python benchmarks/<name>.py``, this one included) puts the folder first on ``sys.path``, where
+    # ``import predictors`` would find this file. So the folder is taken off, and if this file was just
+    # imported in the package's place (by a sibling script), the import is handed over to the package.
+    _here = Path(__file__).resolve().parent
+    sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _here]
+    if __name__ == "predictors":
+        del sys.modules["predictors"]
+        importlib.import_module("predictors")
 
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
-from torch import nn  # noqa: E402
+import numpy as np
+import torch
+from torch import nn
 
-from predictors.data import SCENES, default_data_root, iterate_batches, load_split, to_batch  # noqa: E402
-from predictors.models import (  # noqa: E402
+from predictors.data import SCENES, default_data_root, iterate_batches, load_split, to_batch
+from predictors.models import (
     ModelConfig,
     SocialRecurrent,
     count_parameters,

@@ -29,6 +29,21 @@ def test_script_named_like_the_package_still_imports_the_package() -> None:
     assert "--batches" in done.stdout
 
 
+def test_sibling_scripts_still_import_the_package() -> None:
+    """A script run as ``python benchmarks/<name>.py`` has ``benchmarks/`` first on ``sys.path``; its
+    ``import predictors.qlb`` (through crossing_env) must reach the package, not the benchmark."""
+    code = (
+        "import sys; sys.path.insert(0, 'benchmarks'); import predictors.qlb, predictors; "
+        "print(predictors.__file__); print(predictors.qlb.__name__)"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    first, second = done.stdout.split()
+    assert Path(first) == ROOT / "predictors" / "__init__.py" and second == "predictors.qlb"
+
+
 @pytest.mark.skipif(not (DATA / "eth_ucy").is_dir(), reason=f"shared data not found at {DATA}")
 @pytest.mark.skipif(not (WEIGHTS_DIR / "s-cgru_eth.pt").is_file(), reason="shipped weights not built")
 def test_shipped_latency_times_every_model_on_every_test_scene() -> None:
