@@ -213,12 +213,15 @@ def _fill_pedestrian_slots(
             continue
         any_active = True
         dx, dy = position[p, 0] - ex, position[p, 1] - ey
-        visible = math.sqrt(dx * dx + dy * dy) <= ped_range
-        for b in range(occluders.shape[0]):
-            if visible and _segment_hits_box(ex, ey, position[p, 0], position[p, 1], occluders[b]):
-                visible = False
+        dist = math.sqrt(dx * dx + dy * dy)
+        visible = dist <= ped_range
         if visible:
-            key[p] = math.sqrt(dx * dx + dy * dy) + (100.0 if dx < -2 * half_len else 0.0)
+            for b in range(occluders.shape[0]):
+                if _segment_hits_box(ex, ey, position[p, 0], position[p, 1], occluders[b]):
+                    visible = False
+                    break
+        if visible:
+            key[p] = dist + (100.0 if dx < -2 * half_len else 0.0)
     if any_active:  # with nobody around, the counters wait (pedestrian ids never repeat)
         for p in range(capacity):
             if np.isfinite(key[p]):
@@ -230,7 +233,7 @@ def _fill_pedestrian_slots(
     order = np.argsort(key, kind="mergesort")  # stable: ties keep pool order
     last_sample = step_count - step_count % history_every
     last_slots[:] = -1
-    for k in range(slots):
+    for k in range(min(slots, capacity)):  # a pool smaller than the slots fills only its own number
         p = order[k]
         if not np.isfinite(key[p]):
             break
@@ -287,7 +290,7 @@ def _fill_vehicle_slots(
             if d <= perception_range:
                 dist[i] = d
     order = np.argsort(dist, kind="mergesort")
-    for k in range(veh.shape[0]):
+    for k in range(min(veh.shape[0], x.shape[0])):
         i = order[k]
         if not np.isfinite(dist[i]):
             break

@@ -153,6 +153,23 @@ def test_collision_terminates_with_penalty():
     assert info["rewards"]["collision"] < 0
 
 
+def test_pedestrian_pool_smaller_than_the_observation_slots():
+    """Two pedestrians at most, sixteen slots: both fill a slot each, the rest stay empty (no read past
+    the pool in the compiled slot filling)."""
+    spawns = tuple(PedestrianSpawn(x=x, side="south", crosses=False) for x in (40.0, 45.0))
+    scenario = ScenarioConfig(
+        pedestrians=PedestrianConfig(spawns=spawns, spawn_rate=0, max_pedestrians=2),
+        traffic=TrafficConfig(flow_per_lane=0),
+    )
+    env = CrossingEnv(scenario=scenario)
+    obs, _ = env.reset(seed=0)
+    for _ in range(5):
+        obs, *_ = env.step(np.array([0.0], dtype=np.float32))
+    assert env.observation_space.contains(obs)
+    present = obs["pedestrians"][:, 0]
+    assert present.tolist() == [1.0, 1.0] + [0.0] * (len(present) - 2)
+
+
 def test_rgb_array_render_and_bad_render_mode():
     env = gym.make(ENV_ID, render_mode="rgb_array")
     env.reset(seed=0)
