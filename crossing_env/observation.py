@@ -125,7 +125,6 @@ class ObservationBuilder:
             self.ped_range,
             geo.kerb_south,
             geo.kerb_north,
-            geo.has_crossing,
             occluders,
             self._seen_id,
             self._visible_steps,
@@ -188,7 +187,6 @@ def _fill_pedestrian_slots(
     ped_range: float,
     kerb_south: float,
     kerb_north: float,
-    has_crossing: bool,
     occluders: FloatArray,
     seen_id: np.ndarray,
     visible_steps: np.ndarray,
@@ -246,7 +244,7 @@ def _fill_pedestrian_slots(
         ped[k, 2] = y - ey
         ped[k, 3] = vx
         ped[k, 4] = vy
-        ped[k, 5] = 1.0 if has_crossing and on_crossing[p] else 0.0
+        ped[k, 5] = 1.0 if on_crossing[p] else 0.0  # the world's mask: never set without a zebra
         ped[k, 6] = (
             1.0
             if not on_road and kerb_dist < WAITING_DISTANCE and vx * vx + vy * vy < WAITING_SPEED**2

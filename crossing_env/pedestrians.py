@@ -53,8 +53,6 @@ class CarSnapshot:
 
     x: FloatArray
     """(C,) front-centre... centre x of each moving vehicle."""
-    lane: np.ndarray
-    """(C,) lane index."""
     direction: FloatArray
     """(C,) +1 / −1 travel direction."""
     speed: FloatArray
@@ -128,6 +126,17 @@ class PedestrianPopulation:
         self._kerb_lines = (float(geometry.kerb_south), float(geometry.kerb_north))
         """(south, north) kerb y: the edges of the carriageway."""
         self._road_length = float(scenario.road.length)
+        rect = geometry.crossing_rect
+        self._zebra_box = (
+            geometry.has_crossing,
+            float(rect.x_min),
+            float(rect.x_max),
+            float(rect.y_min),
+            float(rect.y_max),
+        )
+        """(has a crossing, x min, x max, y min, y max) of the zebra area, as `_geometric_masks` takes it."""
+        self._zebra_span = (float(scenario.crossing.position), float(scenario.crossing.width))
+        """(centre x, width) of the crossing, as `_anyone_at_zebra` takes it."""
         self._force_parameters = model_parameters(self.config.social_force)
         """The social-force config as the kernels take it (unpacked once, not every step)."""
         self._walk_y = (
@@ -348,23 +357,24 @@ class PedestrianPopulation:
                 go &= ~held
                 moving_groups = groups[go & (groups >= 0)]
                 go |= (groups >= 0) & np.isin(groups, moving_groups) & ~held
-            for k in np.flatnonzero(go) if go.any() else ():
+            for k in np.flatnonzero(go):
                 self.accepted_gap[waiting[k]] = gap[k]
                 self._start_crossing(int(waiting[k]), bool(red[k]))
         # CROSSING: irrational acts (rare: Python handles them, drawing from the RNG in slot order).
-        for i in np.flatnonzero(acts & HESITATES) if any_acts else ():
-            self.hesitate_at[i] = np.inf
-            self.hesitate_left[i] = self.rng.uniform(1.0, 2.5)
-            self._log(i, "hesitate")
-        for i in np.flatnonzero(acts & TURNS_BACK) if any_acts else ():
-            self.turn_back_at[i] = np.inf
-            # Head back to the kerb it came from (its side is unchanged), wait there and re-decide.
-            self.state[i] = APPROACHING
-            self.turning_back[i] = True
-            start_kerb = self._kerb_y[0] if self.side[i] > 0 else self._kerb_y[1]
-            self.waypoint[i] = (self.position[i, 0], start_kerb)
-            self.desired_speed[i] = self.base_speed[i] * 1.2
-            self._log(i, "turn_back")
+        if any_acts:
+            for i in np.flatnonzero(acts & HESITATES):
+                self.hesitate_at[i] = np.inf
+                self.hesitate_left[i] = self.rng.uniform(1.0, 2.5)
+                self._log(i, "hesitate")
+            for i in np.flatnonzero(acts & TURNS_BACK):
+                self.turn_back_at[i] = np.inf
+                # Head back to the kerb it came from (its side is unchanged), wait there and re-decide.
+                self.state[i] = APPROACHING
+                self.turning_back[i] = True
+                start_kerb = self._kerb_y[0] if self.side[i] > 0 else self._kerb_y[1]
+                self.waypoint[i] = (self.position[i, 0], start_kerb)
+                self.desired_speed[i] = self.base_speed[i] * 1.2
+                self._log(i, "turn_back")
         # CROSSING → LEAVING past the far kerb; LEAVING → despawn at the goal or off the map.
         _finish_transitions(
             st,
@@ -396,15 +406,7 @@ class PedestrianPopulation:
 
     def anyone_at_zebra(self, on_crossing: np.ndarray) -> bool:
         """Whether anyone waits by the crossing (jaywalkers aside) or is on it (`on_crossing`)."""
-        crossing = self.scenario.crossing
-        return _anyone_at_zebra(
-            self.state,
-            self.crossing_x,
-            self.jaywalker,
-            on_crossing,
-            float(crossing.position),
-            float(crossing.width),
-        )
+        return _anyone_at_zebra(self.state, self.crossing_x, self.jaywalker, on_crossing, *self._zebra_span)
 
     def irrational_now(self) -> np.ndarray:
         """(n,) visibly acting irrationally this step (what others can see and react to).
@@ -463,17 +465,11 @@ class PedestrianPopulation:
 
         Legal: on the zebra and not against red, or not on the road at all. Inactive slots are off the road.
         """
-        rect = self.geometry.crossing_rect
         return _geometric_masks(
             self.state,
             self.position,
             *self._kerb_lines,
-            self.geometry.has_crossing,
-            float(rect.x_min),
-            float(rect.x_max),
-            float(rect.y_min),
-            float(rect.y_max),
-            self.scenario.crossing.kind == "none",
+            *self._zebra_box,
             self.crossed_on_red,
             self.jaywalker,
         )
@@ -705,7 +701,6 @@ def _geometric_masks(
     x_max: float,
     y_min: float,
     y_max: float,
-    no_crossing: bool,
     crossed_on_red: np.ndarray,
     jaywalker: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -719,7 +714,7 @@ def _geometric_masks(
         on_road[i] = kerb_south < y < kerb_north
         on_crossing[i] = has_crossing and x_min <= x <= x_max and y_min <= y <= y_max
         if on_road[i]:
-            legal[i] = not no_crossing and on_crossing[i] and not crossed_on_red[i] and not jaywalker[i]
+            legal[i] = on_crossing[i] and not crossed_on_red[i] and not jaywalker[i]  # no zebra: never
     return on_road, on_crossing, legal
 
 

@@ -171,9 +171,9 @@ class Traffic:
         """(k, 4) axis-aligned boxes [x_min, y_min, x_max, y_max] of the selected (default: active) slots."""
         return _boxes(self.x, self.y, self.length, self.width, self.active if mask is None else mask)
 
-    def moving(self) -> tuple[FloatArray, np.ndarray, FloatArray, FloatArray, FloatArray]:
-        """(x, lane, direction, speed, half length) of the active, not parked slots, in slot order."""
-        return _moving(self.x, self.lane, self.direction, self.speed, self.length, self.active, self.parked)
+    def moving(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """(x, direction, speed, half length) of the active, not parked slots, in slot order."""
+        return _moving(self.x, self.direction, self.speed, self.length, self.active, self.parked)
 
     # ------------------------------------------------------------------ spawning
     def spawn(self, spawn: VehicleSpawn) -> int | None:
@@ -360,16 +360,15 @@ def _boxes(
 @njit(cache=True, nogil=True)
 def _moving(
     x: FloatArray,
-    lane: np.ndarray,
     direction: FloatArray,
     speed: FloatArray,
     length: FloatArray,
     active: np.ndarray,
     parked: np.ndarray,
-) -> tuple[FloatArray, np.ndarray, FloatArray, FloatArray, FloatArray]:
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
     """`Traffic.moving` without a numpy call per field."""
     rows = np.flatnonzero(active & ~parked)
-    return x[rows], lane[rows], direction[rows], speed[rows], length[rows] / 2
+    return x[rows], direction[rows], speed[rows], length[rows] / 2
 
 
 @njit(cache=True, nogil=True)

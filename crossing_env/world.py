@@ -72,10 +72,9 @@ class World:
 
     # ------------------------------------------------------------------ stepping
     def _car_snapshot(self) -> CarSnapshot:
-        x, lane, direction, speed, half_length = self.traffic.moving()
+        x, direction, speed, half_length = self.traffic.moving()
         return CarSnapshot(
             x=x,
-            lane=lane,
             direction=direction,
             speed=speed,
             half_length=half_length,

@@ -427,7 +427,6 @@ def test_distracted_pedestrian_takes_a_gap_an_attentive_one_refuses() -> None:
     x = peds.crossing_x[:2]
     cars = CarSnapshot(
         x=np.array([x[0] - 50.0 - 2.25, x[1] + 50.0 + 2.25]),
-        lane=np.array([0, 1]),
         direction=np.array([1.0, -1.0]),
         speed=np.array([10.0, 10.0]),
         half_length=np.array([2.25, 2.25]),
