@@ -1,24 +1,22 @@
-"""Driving policies for the crossing environment and the evaluation script (`crossing-eval`)."""
+"""Driving policies for `crossing_env/Crossing-v0`: callables `policy(obs) -> action`, and their registry.
+
+Every policy reads only the observation (never the ground truth). `make_policy("yielding", scenario=cfg)`
+builds a registered one; `POLICIES` lists the names.
+"""
 
 from __future__ import annotations
 
-from agents.policies import (
-    POLICIES,
-    AlwaysCautious,
+from agents.baselines import ConstantSpeed, HighwayEnvRule, TTCEmergencyBrake
+from agents.config import (
     CautiousConfig,
-    ConstantSpeed,
     ConstantSpeedConfig,
     DrivingConfig,
-    HighwayEnvRule,
     HighwayRuleConfig,
     TTCBrakeConfig,
-    TTCEmergencyBrake,
     YieldingConfig,
-    YieldingPolicy,
-    make_policy,
-    policy_uses_predictors,
-    scenario_settings,
 )
+from agents.registry import POLICIES, make_policy, policy_uses_predictors, scenario_settings
+from agents.yielding import AlwaysCautious, YieldingPolicy
 
 __all__ = [
     "POLICIES",

@@ -16,7 +16,8 @@ import time
 import psutil
 
 from agents import POLICIES
-from agents.evaluate import make_tasks, run_tasks
+from crossing_eval.runners import run_tasks
+from crossing_eval.tasks import make_tasks
 from scenarios import list_scenarios
 
 

@@ -25,11 +25,11 @@ from pathlib import Path
 
 import numpy as np
 
-from crossing_env.config import BehaviourConfig, PedestrianConfig, ScenarioConfig
+from crossing_common.files import write_text_atomic
 from crossing_env.env import CrossingEnv
-from crossing_env.files import write_text_atomic
 from predictors.intention import ClassicalIntention, QLBIntention
 from scenarios import load_scenario
+from scenarios.config import BehaviourConfig, PedestrianConfig, ScenarioConfig
 
 HORIZONS = (1.0, 2.0, 4.0)
 

@@ -206,7 +206,7 @@ def wrapper_ms(k: int = 16, repeats: int = 200) -> tuple[float, float] | None:
 
 def crowd_scenario(count: int, seed: int) -> object:
     """``count`` pedestrians on both sidewalks 0-80 m ahead of the ego's start (it sees them all)."""
-    from crossing_env.config import (
+    from scenarios.config import (
         PedestrianConfig,
         PedestrianSpawn,
         RoadConfig,

@@ -21,8 +21,8 @@ import time
 
 import numpy as np
 
-from crossing_env.config import PedestrianConfig, PedestrianSpawn, RoadConfig, ScenarioConfig, TrafficConfig
 from crossing_env.world import World
+from scenarios.config import PedestrianConfig, PedestrianSpawn, RoadConfig, ScenarioConfig, TrafficConfig
 
 
 def crowd_scenario(count: int, seed: int = 0, pairs: bool = False) -> ScenarioConfig:

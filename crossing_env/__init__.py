@@ -12,7 +12,11 @@ from __future__ import annotations
 
 import gymnasium as gym
 
-from crossing_env.config import (
+from crossing_env.env import CrossingEnv, acceleration_to_action, action_to_acceleration
+from crossing_env.types import GroundTruth, PedState
+from crossing_env.world import World
+from scenarios import list_scenarios
+from scenarios.config import (
     BehaviourConfig,
     CrosswalkConfig,
     EgoConfig,
@@ -29,17 +33,12 @@ from crossing_env.config import (
     TrafficConfig,
     VehicleSpawn,
 )
-from crossing_env.env import CrossingEnv, acceleration_to_action, action_to_acceleration
-from crossing_env.types import GroundTruth, PedState
-from crossing_env.world import World
 
 ENV_ID = "crossing_env/Crossing-v0"
 
 
 def scenarios() -> dict[str, str]:
     """Built-in scenario names with a one-line description each."""
-    from scenarios import list_scenarios
-
     return list_scenarios()
 
 

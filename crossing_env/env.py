@@ -16,10 +16,11 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from crossing_env.config import EgoConfig, EnvConfig, ScenarioConfig
 from crossing_env.observation import ObservationBuilder
 from crossing_env.types import CrossingObs, GroundTruth, StepReturn
 from crossing_env.world import World
+from scenarios import load_scenario, validate_scenario
+from scenarios.config import EgoConfig, EnvConfig, ScenarioConfig
 
 END_OF_ROAD_MARGIN = 10.0
 """The episode terminates when the ego's centre is this close to the end of the road (m)."""
@@ -33,8 +34,6 @@ def resolve_scenario(scenario: str | os.PathLike[str] | ScenarioConfig | None) -
     """
     if scenario is None or (isinstance(scenario, (str, Path)) and str(scenario) == "default"):
         return ScenarioConfig()
-    from scenarios import load_scenario, validate_scenario
-
     if isinstance(scenario, ScenarioConfig):
         return validate_scenario(scenario)
     return load_scenario(scenario)

@@ -17,8 +17,8 @@ import numpy as np
 from gymnasium import spaces
 from numba import njit
 
-from crossing_env.config import ObservationConfig, ScenarioConfig
 from crossing_env.types import CrossingObs, FloatArray
+from scenarios.config import ObservationConfig, ScenarioConfig
 
 EGO_FEATURES = (
     "speed",

@@ -6,8 +6,8 @@ import os
 
 import numpy as np
 
-from crossing_env.config import EnvConfig
 from crossing_env.types import PedState
+from scenarios.config import EnvConfig
 
 COLOURS = {
     "grass": (96, 128, 80),

@@ -13,8 +13,8 @@ import numpy as np
 from highway_env.road.lane import LineType, StraightLane
 from highway_env.road.road import RoadNetwork
 
-from crossing_env.config import CrosswalkConfig, RoadConfig, SignalConfig
 from crossing_env.types import ConflictArea
+from scenarios.config import CrosswalkConfig, RoadConfig, SignalConfig
 
 
 @dataclass(frozen=True)

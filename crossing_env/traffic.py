@@ -12,9 +12,9 @@ import math
 import numpy as np
 from numba import njit
 
-from crossing_env.config import IDMConfig, ScenarioConfig, VehicleSpawn
 from crossing_env.road import RoadGeometry
 from crossing_env.types import FloatArray
+from scenarios.config import IDMConfig, ScenarioConfig, VehicleSpawn
 
 ENTRY_CLEARANCE = 20.0
 """A new car enters only if the nearest car in its lane is farther than this from the entry (m)."""

@@ -10,19 +10,20 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from crossing_env.config import EnvConfig, ScenarioConfig
-from crossing_env.decisions import CrossingDecisionModel, GapAcceptance
-from crossing_env.pedestrians import WAITING, CarSnapshot, PedestrianPopulation
+from crossing_env.pedestrians.decisions import CrossingDecisionModel, GapAcceptance
+from crossing_env.pedestrians.population import CarSnapshot, PedestrianPopulation
+from crossing_env.pedestrians.transitions import WAITING
 from crossing_env.physics import PhysicsWorld
 from crossing_env.road import RoadGeometry
 from crossing_env.traffic import Traffic
 from crossing_env.types import CollisionEvent, FloatArray, GroundTruth
+from scenarios.config import EnvConfig, ScenarioConfig
 
 
 def make_decision_model(scenario: ScenarioConfig) -> CrossingDecisionModel:
     """The decision model a scenario asks for."""
     if scenario.pedestrians.behaviour.decision_model == "qlb":
-        from crossing_env.behaviour import QuantumGapAcceptance
+        from crossing_env.pedestrians.behaviour import QuantumGapAcceptance
 
         return QuantumGapAcceptance()
     return GapAcceptance()

@@ -49,7 +49,7 @@ class Args:
 def parse_args(argv: list[str] | None = None) -> Args:
     """Parse the command line into `Args` (positive integers enforced; argparse exits with 2 otherwise)."""
 
-    from crossing_env.cli import int_at_least
+    from crossing_common.cli import int_at_least
 
     positive, non_negative = int_at_least(1), int_at_least(0)
     d = Args()
@@ -77,11 +77,12 @@ def make_env(scenario: str) -> Any:
 
 
 def evaluate(model, vec_normalize, scenario: str, episodes: int, seed: int) -> dict:
-    """Greedy rollouts scored with `crossing_env.metrics` (the same figures as `crossing-eval`)."""
+    """Greedy rollouts scored with `crossing_env.safety` (the same figures as `crossing-eval`)."""
     import gymnasium as gym
 
     import crossing_env
-    from crossing_env.metrics import EpisodeMetrics, aggregate
+    from crossing_env.safety import EpisodeMetrics
+    from crossing_eval.statistics import aggregate
 
     env = gym.make(crossing_env.ENV_ID, scenario=scenario)
     base = env.unwrapped

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from crossing_env.files import write_text_atomic
+from crossing_common.files import write_text_atomic
 from predictors.baselines import cvm, cvm_samples, kalman_predict, kalman_samples
 from predictors.data import SCENES, Windows, default_data_root, iterate_batches, load_split
 from predictors.models import MODEL_KINDS

@@ -21,8 +21,9 @@ The model, per slot, vectorised over slots:
    calibrated population critical-gap distribution (lognormal, mean 5.5 s, SD 1.2 s, floor 3 s).
 4. The per-look crossing probability is a disjunction over the hidden cause "gap safe" (qlb.md §4, mapping
    (a)): classical (CBM) ``beta P(C | safe) + (1 - beta) P(C | unsafe)``, or quantum-like (QLB) with the phase
-   from the Moreira & Wichert similarity heuristic (`predictors.qlb.disjunction_probabilities` with
-   ``theta=None``): the observer cannot see each pedestrian's own phase, so the network sets it.
+   from the Moreira & Wichert similarity heuristic
+   (`crossing_env.pedestrians.quantum.disjunction_probabilities` with ``theta=None``): the observer cannot
+   see each pedestrian's own phase, so the network sets it.
 5. Looks every ``decision_interval`` seconds give a hazard; the probability of starting within the time left
    before the horizon (or before the ego has passed the pedestrian) is ``1 - exp(-rate * window)``.
 
@@ -41,7 +42,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from predictors.qlb import disjunction_probabilities
+from crossing_env.pedestrians.quantum import disjunction_probabilities
 
 __all__ = [
     "ClassicalIntention",

@@ -29,17 +29,19 @@ import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from crossing_env.files import atomic_output
-from predictors.qlb import (
-    CASES,
+from crossing_common.files import atomic_output
+from crossing_env.pedestrians.quantum import (
     PED_PED_INTENSITY,
     VEHICLE_PED_INTENSITY,
-    ZONE_BELIEF,
     ForceUpdateConfig,
-    cbm_cross_probability,
     classical_updated_force_intensity,
-    qlb_cross_probability,
     updated_force_intensity,
+)
+from predictors.qlb import (
+    CASES,
+    ZONE_BELIEF,
+    cbm_cross_probability,
+    qlb_cross_probability,
 )
 
 __all__ = ["FigureArgs", "main", "make_figures"]

@@ -27,7 +27,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from crossing_env.files import atomic_output
+from crossing_common.files import atomic_output
 from predictors.data import (
     SCENES,
     Windows,

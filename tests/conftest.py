@@ -1,4 +1,14 @@
-"""Shared fixtures: headless pygame, the data folder."""
+"""Shared fixtures: headless pygame, the data folder, Hypothesis profiles.
+
+Hypothesis profiles (`HYPOTHESIS_PROFILE` picks one; `CI=true` picks `ci`):
+
+- `ci`: derandomized (the same examples on every run and every clone) with a fixed budget, no example
+  database, so the suite is green on every fresh clone or red on every one;
+- `dev` (default locally): random examples, the same budget;
+- `fuzz`: deep local fuzzing, 20x the examples: `HYPOTHESIS_PROFILE=fuzz python -m pytest tests -k fuzz`.
+
+Property tests scale their own budgets from the loaded profile's `max_examples`.
+"""
 
 from __future__ import annotations
 
@@ -6,9 +16,21 @@ import os
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, settings
 
 os.environ.setdefault("SDL_VIDEODRIVER", "dummy")
 os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+
+settings.register_profile(
+    "ci", derandomize=True, database=None, max_examples=100, deadline=None, print_blob=True
+)
+settings.register_profile("dev", max_examples=100, deadline=None)
+settings.register_profile(
+    "fuzz", max_examples=2000, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
+settings.load_profile(
+    os.environ.get("HYPOTHESIS_PROFILE") or ("ci" if os.environ.get("CI", "").lower() == "true" else "dev")
+)
 
 REPO = Path(__file__).resolve().parents[1]
 

@@ -31,7 +31,15 @@ def _compiled_kernels(module):
 def _modules_with_kernels() -> list[str]:
     """Every module of the packages that defines a numba kernel (found, so a new one is not forgotten)."""
     names = []
-    for package in ("crossing_env", "predictors", "agents"):
+    for package in (
+        "crossing_common",
+        "scenarios",
+        "crossing_env",
+        "predictors",
+        "agents",
+        "crossing_replay",
+        "crossing_eval",
+    ):
         for path in sorted((REPO / package).rglob("*.py")):
             if "@njit" in path.read_text(encoding="utf-8"):
                 names.append(".".join(path.relative_to(REPO).with_suffix("").parts))
@@ -40,7 +48,11 @@ def _modules_with_kernels() -> list[str]:
 
 def test_kernel_modules_are_found() -> None:
     found = _modules_with_kernels()
-    assert {"crossing_env.social_force", "predictors.fast_inference", "predictors.pooling"} <= set(found)
+    assert {
+        "crossing_env.pedestrians.social_force",
+        "predictors.fast_inference",
+        "predictors.pooling",
+    } <= set(found)
 
 
 @pytest.mark.parametrize("module_name", _modules_with_kernels())

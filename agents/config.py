@@ -1,0 +1,146 @@
+"""Configuration of the driving policies: one frozen dataclass per policy, each field documented.
+
+Quantities the observation does not carry (speed limit, lateral extent of the ego's half of the road, the
+action scaling) live here; `agents.make_policy(name, scenario=...)` fills them from a `ScenarioConfig`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from scenarios.config import EgoConfig
+
+
+@dataclass(frozen=True)
+class DrivingConfig:
+    """Settings shared by every policy: vehicle, road and car-following parameters (SI units)."""
+
+    ego: EgoConfig = field(default_factory=EgoConfig)
+    """The ego's limits; its `max_acceleration` / `max_deceleration` scale the normalised action."""
+    speed_limit: float = 13.9
+    """Cruising speed (m/s); set from `RoadConfig.speed_limit` by `make_policy(scenario=...)`."""
+    ego_length: float = 4.5
+    """Ego length (m), needed to turn the observed front/rear distances into centre coordinates."""
+    ego_width: float = 1.8
+    """Ego width (m)."""
+    lane_width: float = 3.5
+    """Lane width (m); vehicles with |dy| below half of it are in the ego's lane."""
+    half_right: float = -1.75
+    """Lateral offset (m, ego frame, negative = right) of the outer edge of the ego's half of the road."""
+    half_left: float = 1.75
+    """Lateral offset (m) of the inner edge of the ego's half of the road (centre line on two-way roads)."""
+    stop_line_offset: float = 3.0
+    """Distance (m) from the stop line to the crossing's near edge (`CrosswalkConfig.stop_line_offset`)."""
+    road_right: float = -1.75
+    """Lateral offset (m, ego frame) of the right-hand (south) kerb."""
+    road_left: float = 5.25
+    """Lateral offset (m, ego frame) of the left-hand (north) kerb."""
+    cruise_gain: float = 0.8
+    """Proportional gain (1/s) of the speed controller towards the cruising speed."""
+    cruise_acceleration: float = 2.0
+    """Largest acceleration (m/s²) used when speeding up to the cruising speed."""
+    idm_time_headway: float = 1.2
+    """IDM desired time headway T (s) to a vehicle ahead in the ego's lane."""
+    idm_min_gap: float = 2.5
+    """IDM jam distance s0 (m)."""
+    idm_comfortable_deceleration: float = 2.5
+    """IDM comfortable deceleration b (m/s²)."""
+    pedestrian_radius: float = 0.3
+    """Assumed pedestrian body radius (m); the observation carries centres only."""
+
+
+@dataclass(frozen=True)
+class ConstantSpeedConfig(DrivingConfig):
+    """Constant speed: the ego holds its initial speed whatever happens (never yields, never brakes)."""
+
+
+@dataclass(frozen=True)
+class YieldingConfig(DrivingConfig):
+    """Parameters of `YieldingPolicy` (see its docstring for the decision rules)."""
+
+    comfortable_deceleration: float = 2.5
+    """Deceleration (m/s²) of a planned stop; the car brakes as late as this allows (−2…−3 m/s² is
+    comfortable)."""
+    yield_max_deceleration: float = 4.0
+    """A legal yield (zebra, red light) is attempted only if stopping before the line needs at most this
+    (m/s²); beyond it the car cannot stop in time and only the conflict check below applies."""
+    stop_buffer: float = 0.5
+    """Stop this far (m) before the stop line."""
+    pedestrian_gap: float = 2.0
+    """When stopping for a pedestrian away from the stop line, keep this gap (m) to its body."""
+    lateral_margin: float = 0.6
+    """Margin (m) added to half the ego's width and the pedestrian radius to form the ego's lane corridor."""
+    time_buffer: float = 1.5
+    """A conflict exists if the pedestrian's time in the corridor and the ego's passage overlap within this
+    margin (s)."""
+    horizon: float = 6.0
+    """Only pedestrians entering the corridor within this time (s) are considered."""
+    go_acceleration: float = 1.5
+    """Acceleration (m/s²) assumed when asking "if I go now, when do I pass?" from a low speed."""
+    kerb_margin: float = 1.5
+    """A waiting pedestrian is yielded to if it stands within the crossing's extent ± this margin (m)."""
+    kerb_distance: float = 2.0
+    """A slow pedestrian on the sidewalk this close (m) to a kerb at the crossing counts as waiting, even
+    when the observation's stricter `waiting` flag (1.2 m, 0.3 m/s) is off: people waiting shuffle about."""
+    waiting_speed: float = 0.5
+    """Speed (m/s) below which a pedestrian near the kerb counts as waiting."""
+    intention_threshold: float = 0.5
+    """With `crossing_intention` in the observation, a pedestrian off the road with at least this
+    probability is treated as about to cross: at the crossing it is yielded to like a waiting one, elsewhere
+    it is assumed to step towards the ego's lane at `assumed_walking_speed` in the conflict check. Waiting
+    pedestrians are yielded to whatever the estimate (the legal duty does not depend on it)."""
+    assumed_walking_speed: float = 1.4
+    """Speed (m/s) at which a pedestrian predicted to cross is assumed to walk into the road."""
+    use_predictions: bool = True
+    """Use `crossing_intention` / `predicted_paths` when the observation has them."""
+    stop_gain: float = 2.0
+    """Gain (1/s) pulling the speed down onto the braking profile sqrt(2·b·s)."""
+    occlusion_speed: float = 3.0
+    """Speed (m/s) at which the car passes a stationary vehicle standing beside it near a crossing, which
+    may hide a pedestrian (UK Highway Code rule 191: do not overtake a vehicle stopped at a crossing;
+    StVO §26: approach at moderate speed). At 3 m/s the car stops within about a metre."""
+    offer_timeout: float = 3.5
+    """After standing still at the line this long (s) for pedestrians who keep waiting at the kerb, the car
+    takes the offer as declined and goes (pedestrians on the crossing are still given way); half a second
+    more than `MetricsConfig.offer_timeout` (3 s), so the car never leaves before an offer counts as made."""
+    dt: float = 0.1
+    """Time between calls (s), the env's `EnvConfig.dt`; used by the offer timer."""
+    occlusion_window: float = 15.0
+    """A stationary vehicle counts as an occluder if its front is within this distance (m) before the
+    crossing's near edge (or on the crossing)."""
+
+
+@dataclass(frozen=True)
+class TTCBrakeConfig(DrivingConfig):
+    """Parameters of `TTCEmergencyBrake`."""
+
+    ttc_threshold: float = 1.5
+    """Full braking when the time to collision with a pedestrian falls below this (s) (serious conflict)."""
+    lateral_margin: float = 0.3
+    """Margin (m) added to half the ego's width and the pedestrian radius for the collision corridor."""
+
+
+@dataclass(frozen=True)
+class CautiousConfig(YieldingConfig):
+    """Parameters of `AlwaysCautious` (it also stops for pedestrians in its path, like `YieldingPolicy`)."""
+
+    crawl_speed: float = 2.0
+    """Speed (m/s) at which the car passes every crossing."""
+    approach_deceleration: float = 1.5
+    """Deceleration (m/s²) with which it slows down to the crawl before the stop line."""
+    clear_distance: float = 2.0
+    """It keeps the crawl until its rear is this far (m) past the crossing."""
+
+
+@dataclass(frozen=True)
+class HighwayRuleConfig(DrivingConfig):
+    """Parameters of `HighwayEnvRule` (highway-env's priority rule transferred to pedestrians)."""
+
+    horizon: float = 2.0
+    """Prediction horizon (s) of the collision check (highway-env: 2 s)."""
+    step: float = 0.25
+    """Time step (s) of the constant-speed prediction."""
+    brake_gain: float = 1.0 / 0.6
+    """Speed-controller gain (1/s) towards a target speed of 0 when yielding (highway-env: KP_A = 1/0.6)."""
+    lateral_margin: float = 0.0
+    """Margin (m) added to the footprints in the collision check."""

@@ -1,0 +1,203 @@
+"""What the policies read: the observation parsed into batched arrays, and shared kinematics.
+
+Geometry recovered from the observation (ego frame: heading +x, origin at the ego's centre):
+
+- the stop line lies ``length / 2 + distance_to_stop_line`` ahead of the ego's centre;
+- the crossing's far edge lies ``-distance_past_crossing - length / 2`` ahead;
+- pedestrian slots give relative position and velocity; the ego's lane centre is at dy = 0.
+
+Policies accept one observation (``obs["ego"]`` of shape (6,), action (1,)) or a batch with any leading axes
+(``obs["ego"]`` (..., 6), action (..., 1)), so they drive Gymnasium vector envs directly.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from agents.config import DrivingConfig
+from crossing_env.env import acceleration_to_action
+
+ObsLike = Mapping[str, Any]
+
+EPS = 1e-6
+PREDICTION_STEP = 0.4
+"""Time between the points of ``obs["predicted_paths"]`` (s): the trajectory predictors' 2.5 Hz cadence."""
+
+
+@dataclass
+class View:
+    """Flattened batch view of an observation: leading axes folded into B."""
+
+    lead: tuple[int, ...]
+    speed: np.ndarray  # (B,)
+    to_stop: np.ndarray  # (B,) ego front → stop line
+    past: np.ndarray  # (B,) ego rear − crossing far edge
+    car_green: np.ndarray  # (B,)
+    zebra: np.ndarray  # (B,)
+    present: np.ndarray  # (B, K) bool
+    px: np.ndarray  # (B, K)
+    py: np.ndarray
+    vx: np.ndarray
+    vy: np.ndarray
+    on_crossing: np.ndarray  # (B, K) bool
+    waiting: np.ndarray
+    on_road: np.ndarray
+    vehicles: np.ndarray  # (B, M, 7)
+    intention: np.ndarray | None  # (B, K)
+    paths: np.ndarray | None  # (B, K, T, 2)
+
+
+def parse_observation(obs: ObsLike) -> View:
+    """Parse a single or batched observation into (B, ...) float64 arrays; raise on a bad layout."""
+    for key in ("ego", "pedestrians"):
+        if key not in obs:
+            raise KeyError(f"policy observation lacks {key!r}; got keys {sorted(obs)}")
+    ego = np.asarray(obs["ego"], dtype=np.float64)
+    if ego.ndim < 1 or ego.shape[-1] != 6:
+        raise ValueError(f"obs['ego'] must have shape (..., 6), got {ego.shape}")
+    lead = ego.shape[:-1]
+    ego = ego.reshape(-1, 6)
+    b = ego.shape[0]
+    ped = np.asarray(obs["pedestrians"], dtype=np.float64)
+    if ped.shape[: len(lead)] != lead or ped.ndim != len(lead) + 2 or ped.shape[-1] != 8:
+        raise ValueError(f"obs['pedestrians'] must have shape {(*lead, 'K', 8)}, got {ped.shape}")
+    ped = ped.reshape(b, -1, 8)
+    k = ped.shape[1]
+    if "vehicles" in obs:
+        veh = np.asarray(obs["vehicles"], dtype=np.float64).reshape(b, -1, 7)
+    else:
+        veh = np.zeros((b, 0, 7))
+    intention = obs.get("crossing_intention")
+    if intention is not None:
+        intention = np.asarray(intention, dtype=np.float64).reshape(b, k)
+    paths = obs.get("predicted_paths")
+    if paths is not None:
+        paths = np.asarray(paths, dtype=np.float64)
+        paths = paths.reshape(b, k, paths.shape[-2], 2)
+    present = ped[..., 0] > 0.5
+    return View(
+        lead=lead,
+        speed=ego[:, 0],
+        to_stop=ego[:, 2],
+        past=ego[:, 3],
+        car_green=ego[:, 4],
+        zebra=ego[:, 5],
+        present=present,
+        px=ped[..., 1],
+        py=ped[..., 2],
+        vx=ped[..., 3],
+        vy=ped[..., 4],
+        on_crossing=present & (ped[..., 5] > 0.5),
+        waiting=present & (ped[..., 6] > 0.5),
+        on_road=present & (ped[..., 7] > 0.5),
+        vehicles=veh,
+        intention=intention,
+        paths=paths,
+    )
+
+
+def finish(accel: np.ndarray, view: View, cfg: DrivingConfig) -> np.ndarray:
+    """Acceleration (B,) → normalised float32 action of shape (*lead, 1)."""
+    return acceleration_to_action(accel, cfg.ego).reshape(*view.lead, 1)
+
+
+def cruise(view: View, cfg: DrivingConfig, target: np.ndarray | float | None = None) -> np.ndarray:
+    """Proportional speed control towards `target` (default: the speed limit), bounded comfortably."""
+    goal = cfg.speed_limit if target is None else target
+    return np.clip(
+        cfg.cruise_gain * (goal - view.speed), -cfg.idm_comfortable_deceleration, cfg.cruise_acceleration
+    )
+
+
+def follow(view: View, cfg: DrivingConfig) -> np.ndarray:
+    """IDM acceleration (B,) behind the nearest vehicle ahead in the ego's lane (+inf when none)."""
+    veh = view.vehicles
+    if veh.shape[1] == 0:
+        return np.full(view.speed.shape, np.inf)
+    ahead = (veh[..., 0] > 0.5) & (np.abs(veh[..., 2]) < cfg.lane_width / 2) & (veh[..., 1] > 0.0)
+    gap = veh[..., 1] - cfg.ego_length / 2 - veh[..., 5] / 2
+    gap = np.where(ahead, gap, np.inf)
+    j = np.argmin(gap, axis=1)
+    rows = np.arange(gap.shape[0])
+    s = np.maximum(gap[rows, j], 0.1)
+    lead_v = veh[rows, j, 3]
+    v = view.speed
+    a_max, b = cfg.cruise_acceleration, cfg.idm_comfortable_deceleration
+    s_star = cfg.idm_min_gap + np.maximum(
+        0.0, v * cfg.idm_time_headway + v * (v - lead_v) / (2 * np.sqrt(a_max * b))
+    )
+    v0 = max(cfg.speed_limit, EPS)
+    acc = a_max * (1.0 - (v / v0) ** 4 - (s_star / s) ** 2)
+    acc = np.maximum(acc, -cfg.ego.max_deceleration)
+    return np.where(np.isfinite(gap[rows, j]), acc, np.inf)
+
+
+def travel_time(dist: np.ndarray, v: np.ndarray, accel: float, v_max: float) -> np.ndarray:
+    """Time to cover `dist` (≥ 0; ≤ 0 gives 0) from speed v accelerating at `accel` up to `v_max`."""
+    d = np.maximum(dist, 0.0)
+    v = np.broadcast_to(v, d.shape)
+    if accel <= 0.0:
+        with np.errstate(divide="ignore"):
+            return np.where(d <= 0.0, 0.0, np.where(v > EPS, d / np.maximum(v, EPS), np.inf))
+    vm = np.maximum(v_max, v)
+    t1 = (vm - v) / accel
+    d1 = 0.5 * (v + vm) * t1
+    t_acc = (-v + np.sqrt(v * v + 2.0 * accel * d)) / accel
+    t_cru = t1 + (d - d1) / np.maximum(vm, EPS)
+    return np.where(d <= d1, t_acc, t_cru)
+
+
+def corridor_interval(py: np.ndarray, vy: np.ndarray, half_width: float) -> tuple[np.ndarray, np.ndarray]:
+    """When a constant-velocity pedestrian is inside |y| ≤ half_width: (t_in, t_out); t_in = inf if never."""
+    inside = np.abs(py) <= half_width
+    moving = np.abs(vy) > 1e-3
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ta = (-half_width - py) / vy
+        tb = (half_width - py) / vy
+    t_in = np.where(moving, np.maximum(np.minimum(ta, tb), 0.0), np.where(inside, 0.0, np.inf))
+    t_out = np.where(moving, np.maximum(ta, tb), np.where(inside, np.inf, -np.inf))
+    never = t_out < t_in
+    return np.where(never, np.inf, t_in), np.where(never, -np.inf, t_out)
+
+
+def path_interval(
+    paths: np.ndarray, present: np.ndarray, half_width: float, min_x: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Corridor entry/exit times and entry x from predicted paths (B, K, T, 2) sampled every 0.4 s."""
+    t = PREDICTION_STEP * np.arange(1, paths.shape[2] + 1)
+    inside = (np.abs(paths[..., 1]) <= half_width) & (paths[..., 0] > min_x) & present[..., None]
+    any_in = inside.any(axis=2)
+    first = np.argmax(inside, axis=2)
+    last = paths.shape[2] - 1 - np.argmax(inside[..., ::-1], axis=2)
+    t_in = np.where(any_in, t[first] - PREDICTION_STEP, np.inf)
+    t_out = np.where(any_in, t[last], -np.inf)
+    x_in = np.take_along_axis(paths[..., 0], first[..., None], axis=2)[..., 0]
+    return t_in, t_out, x_in
+
+
+def stop_acceleration(
+    view: View, distance: np.ndarray, decel: float, gain: float, max_decel: float
+) -> np.ndarray:
+    """Acceleration that brings the car to rest `distance` ahead (B,), braking as late as `decel` allows.
+
+    Below the braking profile v = sqrt(2·decel·s) it returns the profile-tracking term (usually larger
+    than the cruise term, so `min` with it is neutral); above it, the exact constant deceleration v²/(2s),
+    so a late stop brakes only as hard as needed (up to `max_decel`).
+    """
+    v = view.speed
+    s = np.asarray(distance, dtype=np.float64)
+    v_allow = np.sqrt(2.0 * decel * np.maximum(s, 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # Past the target (s < 0) it is too late for a planned stop: brake fully. Within the last 5 cm the
+        # distance is floored, so a creeping car is not asked for an absurd deceleration.
+        a_req = np.where(s >= 0.0, v * v / (2.0 * np.maximum(s, 0.05)), np.where(v > 0.05, np.inf, 0.0))
+    track = gain * (v_allow - v)
+    acc = np.where(a_req > decel, -a_req, track)
+    acc = np.where(np.isfinite(s), acc, np.inf)
+    # At the target: hold still.
+    acc = np.where((s <= 0.3) & (v <= 0.1), -decel, acc)
+    return np.maximum(acc, -max_decel)

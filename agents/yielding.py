@@ -1,0 +1,265 @@
+"""The yielding policy, which gives way as the law asks, and its always-cautious variant.
+
+It reads only the observation (never the ground truth); with the prediction wrappers on it also reads
+``crossing_intention`` and ``predicted_paths``. Vehicles ahead are followed with the Intelligent Driver Model.
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+
+from agents.config import CautiousConfig, YieldingConfig
+from agents.view import (
+    EPS,
+    ObsLike,
+    View,
+    corridor_interval,
+    cruise,
+    finish,
+    follow,
+    parse_observation,
+    path_interval,
+    stop_acceleration,
+    travel_time,
+)
+
+
+class YieldingPolicy:
+    """Gives way at crossings like a careful human driver, and proceeds as soon as the conflict is clear.
+
+    Each step it computes stopping targets (distances ahead of the ego's front) and brakes for the
+    nearest, as late as `comfortable_deceleration` allows (harder only when a target appears late):
+
+    1. **Legal yield** (zebra, UK rule 195 / StVO §26): a pedestrian on the crossing inside the ego's half
+       of the road or walking towards it, or one waiting at the kerb within the crossing's extent ±
+       `kerb_margin` (or, with the intention wrapper on, predicted to cross there), makes the car stop
+       before the stop line; at a signalised crossing a red light for cars does. Attempted only if it needs
+       at most `yield_max_deceleration`: a car that can no longer stop comfortably does not slam on the
+       brakes for a pedestrian still on the kerb. If the car has stood at the line for `offer_timeout`
+       while the only reason was a pedestrian who keeps waiting, the offer counts as declined and it goes.
+    2. **Conflict check** (any pedestrian, anywhere): with constant velocity, the predicted path (when
+       ``predicted_paths`` is present) and, for pedestrians the intention estimate expects to cross, a walk
+       straight into the road, the pedestrian's time inside the ego's lane corridor is compared with the
+       time the ego needs to pass its position "if it goes now" (accelerating at `go_acceleration` to the
+       speed limit). If they overlap within `time_buffer`, the car stops `pedestrian_gap` before the
+       pedestrian (or at the stop line when that is nearer), with any deceleration up to the maximum.
+    3. **Occlusion**: a stationary vehicle beside the ego's lane just before the crossing may hide a
+       pedestrian (the multiple-threat case); the car passes it at `occlusion_speed`.
+
+    Otherwise it cruises at the speed limit and follows vehicles ahead (IDM). "Proceed when clear" falls
+    out of re-evaluating the rules each step; the only state is the offer timer, one per batch element,
+    which resets itself when the car is far before or past a crossing (`reset` clears it explicitly).
+
+    Departures from the literature: legal rules are simplified to what the observation shows (no gaze or
+    gesture); the German "influenced" test is approximated by stopping at the line rather than creeping
+    up to the pedestrian; waiting pedestrians are yielded to whatever the intention estimate says.
+    """
+
+    name: ClassVar[str] = "yielding"
+    uses_predictors: ClassVar[bool] = True
+
+    def __init__(self, config: YieldingConfig | None = None) -> None:
+        self.config = config or YieldingConfig()
+        self._stopped = np.zeros(0)
+        self._declined = np.zeros(0, dtype=bool)
+
+    def reset(self) -> None:
+        """Forget the offer timers (call between episodes; they also reset by themselves, see below)."""
+        self._stopped = np.zeros(0)
+        self._declined = np.zeros(0, dtype=bool)
+
+    def _offer_state(self, view: View, waiting_only: np.ndarray) -> np.ndarray:
+        """Update the per-batch-element offer timers; return which elements treat the offer as declined.
+
+        A timer runs while the car stands (< 0.1 m/s) within a few metres of the stop line and the only
+        reason to stand is a pedestrian waiting at the kerb. After `offer_timeout` the offer counts as
+        declined until the car has passed the crossing or is again far (> 20 m) before the line, which
+        also makes timers reset by themselves at the start of an episode in a vector env.
+        """
+        b = view.speed.shape[0]
+        if self._stopped.shape[0] != b:
+            self._stopped = np.zeros(b)
+            self._declined = np.zeros(b, dtype=bool)
+        fresh = (view.past >= 0.0) | (view.to_stop > 20.0)
+        self._declined &= ~fresh
+        standing = (view.speed < 0.1) & (view.to_stop < 3.0) & waiting_only
+        self._stopped = np.where(standing, self._stopped + self.config.dt, 0.0)
+        self._declined |= self._stopped >= self.config.offer_timeout - 1e-9
+        return self._declined.copy()
+
+    def _targets(self, view: View) -> tuple[np.ndarray, np.ndarray]:
+        """(legal_target, conflict_target): stop distances (B,) ahead of the ego front, inf when none."""
+        cfg = self.config
+        front = cfg.ego_length / 2
+        r = cfg.pedestrian_radius
+        hw = cfg.ego_width / 2 + r + cfg.lateral_margin
+        v = view.speed
+
+        # Crossing geometry in the ego frame.
+        stop_rel = front + view.to_stop[:, None]  # (B, 1) centre → stop line
+        near_rel = stop_rel + cfg.stop_line_offset
+        far_rel = -view.past[:, None] - front
+        crossing_ahead = view.past[:, None] < 0.0
+        at_crossing = (view.px >= near_rel - cfg.kerb_margin) & (view.px <= far_rel + cfg.kerb_margin)
+        # Stop target for crossing-related yields: the stop line, or the crossing's edge once past the line.
+        line_target = np.where(
+            view.to_stop > 0.0,
+            view.to_stop - cfg.stop_buffer,
+            view.to_stop + cfg.stop_line_offset - cfg.stop_buffer,
+        )
+        line_target = np.where(line_target > -0.3, np.maximum(line_target, 0.0), np.inf)  # (B,)
+
+        # 1. Legal yield.
+        use_pred = cfg.use_predictions
+        in_half = (view.py >= cfg.half_right - r) & (view.py <= cfg.half_left + r)
+        centre = 0.5 * (cfg.half_right + cfg.half_left)
+        toward = (centre - view.py) * view.vy > 0.0
+        on_xing = view.on_crossing & (in_half | toward)
+        kerb_gap = np.minimum(np.abs(view.py - cfg.road_right), np.abs(view.py - cfg.road_left))
+        slow = np.hypot(view.vx, view.vy) < cfg.waiting_speed
+        waiting = (view.waiting | (view.present & slow & (kerb_gap <= cfg.kerb_distance))) & ~view.on_road
+        likely = None
+        if use_pred and view.intention is not None:
+            likely = (view.intention >= cfg.intention_threshold) & view.present & ~view.on_road
+            waiting = waiting | likely
+        zebra = view.zebra[:, None] > 0.5
+        legal_xing = (zebra & crossing_ahead & at_crossing & on_xing).any(axis=1)
+        legal_wait = (zebra & crossing_ahead & at_crossing & waiting).any(axis=1)
+        declined = self._offer_state(view, legal_wait & ~legal_xing)
+        red = (view.zebra < 0.5) & (view.car_green < 0.5) & (view.past < 0.0)
+        needs_line = legal_xing | (legal_wait & ~declined) | red
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a_req = np.where(line_target > 0.05, v * v / (2.0 * np.maximum(line_target, 0.05)), np.inf)
+        can_stop = (a_req <= cfg.yield_max_deceleration) | (v < 0.5)
+        legal_target = np.where(needs_line & can_stop, line_target, np.inf)
+
+        # 2. Conflict check (constant velocity ∪ predicted path).
+        t_in, t_out = corridor_interval(view.py, view.vy, hw)
+        x_in = view.px + view.vx * np.where(np.isfinite(t_in), np.minimum(t_in, cfg.horizon), 0.0)
+        if use_pred and view.paths is not None:
+            pt_in, pt_out, px_in = path_interval(view.paths, view.present, hw, -front)
+            x_in = np.where(pt_in < t_in, px_in, x_in)
+            t_in = np.minimum(t_in, pt_in)
+            t_out = np.maximum(t_out, pt_out)
+        if likely is not None:
+            # Anticipation: a pedestrian the intention estimate expects to cross walks straight in.
+            towards_lane = np.where(view.py > 0.0, -1.0, 1.0) * cfg.assumed_walking_speed
+            a_in, a_out = corridor_interval(view.py, towards_lane, hw)
+            a_in = np.where(likely, a_in, np.inf)
+            x_in = np.where(a_in < t_in, view.px, x_in)
+            t_in = np.minimum(t_in, a_in)
+            t_out = np.maximum(t_out, np.where(likely, a_out, -np.inf))
+        behind = x_in + r < -front
+        s_arr = x_in - r - front
+        s_clr = x_in + r + front
+        vmax = max(cfg.speed_limit, EPS)
+        t_arr = travel_time(s_arr, v[:, None], cfg.go_acceleration, vmax)
+        t_clr = travel_time(s_clr, v[:, None], cfg.go_acceleration, vmax)
+        conflict = (
+            view.present
+            & ~behind
+            & (t_in < cfg.horizon)
+            & (t_in < t_clr + cfg.time_buffer)
+            & (t_out > t_arr - cfg.time_buffer)
+        )
+        ped_target = s_arr - cfg.pedestrian_gap
+        # Conflicts at the crossing: stop at the line when it is nearer than the pedestrian.
+        ped_target = np.where(
+            at_crossing & crossing_ahead, np.minimum(ped_target, line_target[:, None]), ped_target
+        )
+        ped_target = np.where(conflict, np.maximum(ped_target, 0.0), np.inf)
+        return legal_target, ped_target.min(axis=1, initial=np.inf)
+
+    def _occlusion_cap(self, view: View) -> np.ndarray:
+        """Acceleration (B,) that slows the car to `occlusion_speed` by the front of an occluding vehicle."""
+        cfg = self.config
+        veh = view.vehicles
+        if veh.shape[1] == 0:
+            return np.full(view.speed.shape, np.inf)
+        front = cfg.ego_length / 2
+        near_rel = front + view.to_stop[:, None] + cfg.stop_line_offset
+        far_rel = -view.past[:, None] - front
+        veh_front = veh[..., 1] + veh[..., 5] / 2
+        speed = np.hypot(veh[..., 3], veh[..., 4])
+        beside = (np.abs(veh[..., 2]) >= cfg.lane_width / 2) & (np.abs(veh[..., 2]) <= 2.5 * cfg.lane_width)
+        occluder = (
+            (veh[..., 0] > 0.5)
+            & beside
+            & (speed < 0.5)
+            & (veh_front >= near_rel - cfg.occlusion_window)
+            & (veh_front <= far_rel)
+            & (veh_front > -front)
+            & (view.past[:, None] < 0.0)
+        )
+        # Distance from the ego front to the occluder's front: reach the crawl there.
+        s = np.where(occluder, veh_front - front, np.inf).min(axis=1, initial=np.inf)
+        v_cap = np.sqrt(cfg.occlusion_speed**2 + 2.0 * cfg.comfortable_deceleration * np.maximum(s, 0.0))
+        over = view.speed - v_cap
+        with np.errstate(invalid="ignore"):
+            a = np.where(
+                np.isfinite(s) & (over > -0.5),
+                np.maximum(
+                    -cfg.ego.max_deceleration, -cfg.stop_gain * over - cfg.comfortable_deceleration * (s > 0)
+                ),
+                np.inf,
+            )
+        return a
+
+    def acceleration(self, obs: ObsLike) -> np.ndarray:
+        """Commanded acceleration (m/s²) of shape (B,) for the flattened batch."""
+        view = parse_observation(obs)
+        return self._acceleration(view)
+
+    def _acceleration(self, view: View) -> np.ndarray:
+        cfg = self.config
+        legal, conflict = self._targets(view)
+        a = np.minimum(cruise(view, cfg), follow(view, cfg))
+        a_legal = stop_acceleration(
+            view, legal, cfg.comfortable_deceleration, cfg.stop_gain, cfg.ego.max_deceleration
+        )
+        a_conf = stop_acceleration(
+            view, conflict, cfg.comfortable_deceleration, cfg.stop_gain, cfg.ego.max_deceleration
+        )
+        return np.minimum(np.minimum(a, self._occlusion_cap(view)), np.minimum(a_legal, a_conf))
+
+    def __call__(self, obs: ObsLike) -> np.ndarray:
+        """Normalised action(s) for one or a batch of observations."""
+        view = parse_observation(obs)
+        return finish(self._acceleration(view), view, self.config)
+
+
+class AlwaysCautious(YieldingPolicy):
+    """Slows to a crawl at every crossing, whoever is there, and stops for pedestrians in its path.
+
+    Approaching a crossing (any kind) it brakes at `approach_deceleration` so as to reach `crawl_speed` at
+    the stop line and keeps the crawl until its rear is `clear_distance` past the crossing. On top it
+    applies `YieldingPolicy`'s rules, so it is safe but slow: the efficiency end of the Pareto front.
+    """
+
+    name: ClassVar[str] = "always_cautious"
+    uses_predictors: ClassVar[bool] = False
+
+    def __init__(self, config: CautiousConfig | None = None) -> None:
+        super().__init__(config or CautiousConfig())
+        self.config: CautiousConfig
+
+    def _acceleration(self, view: View) -> np.ndarray:
+        cfg = self.config
+        a = super()._acceleration(view)
+        crawl = cfg.crawl_speed
+        before = np.maximum(view.to_stop, 0.0)
+        v_allow = np.sqrt(crawl * crawl + 2.0 * cfg.approach_deceleration * before)
+        near = view.past < cfg.clear_distance
+        target = np.where(near, np.minimum(v_allow, cfg.speed_limit), cfg.speed_limit)
+        a_crawl = np.where(
+            view.speed > target,
+            np.maximum(-cfg.comfortable_deceleration, cfg.stop_gain * (target - view.speed)),
+            np.inf,
+        )
+        # Below the profile: do not accelerate above the crawl-speed envelope.
+        a_cap = np.clip(
+            cfg.cruise_gain * (target - view.speed), -cfg.comfortable_deceleration, cfg.cruise_acceleration
+        )
+        return np.minimum(a, np.minimum(a_crawl, a_cap))

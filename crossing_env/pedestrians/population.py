@@ -1,0 +1,472 @@
+"""Pedestrian population: spawning, trip state machine, crossing decisions and irrational acts.
+
+State lives in fixed-size numpy arrays (a pool of `max_pedestrians` slots) so every per-step update is
+vectorised; Python loops only run over the rare events (a spawn, a state change).
+
+A pedestrian's trip: APPROACHING (walk along the sidewalk to the kerb point where it will cross) →
+WAITING (gap acceptance through the decision model) → CROSSING → LEAVING (walk to the final goal) →
+despawn. Pedestrians who do not intend to cross go straight to LEAVING along their sidewalk.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from crossing_env.pedestrians.decisions import CrossingDecisionModel, DecisionContext
+from crossing_env.pedestrians.social_force import model_parameters, walk_step
+from crossing_env.pedestrians.transitions import (
+    APPROACHING,
+    CROSSING,
+    GROUP_MAX_WAIT,
+    HESITATES,
+    HISTORY_INTERVAL,
+    INACTIVE,
+    KERB_STANDOFF,
+    LEAVING,
+    TURNS_BACK,
+    anyone_at_zebra,
+    begin_transitions,
+    finish_transitions,
+    geometric_masks,
+    waiting_context,
+    walk_inputs,
+)
+from crossing_env.road import RoadGeometry
+from crossing_env.types import BehaviourEvent, FloatArray
+from scenarios.config import PedestrianConfig, PedestrianSpawn, ScenarioConfig
+
+
+@dataclass(frozen=True)
+class CarSnapshot:
+    """What pedestrians need to know about the vehicles for their gap decisions."""
+
+    x: FloatArray
+    """(C,) front-centre... centre x of each moving vehicle."""
+    direction: FloatArray
+    """(C,) +1 / −1 travel direction."""
+    speed: FloatArray
+    """(C,) speed in m/s."""
+    half_length: FloatArray
+    """(C,) half vehicle length."""
+    boxes: FloatArray
+    """(C_all, 4) boxes of all vehicles (parked included) for the social force."""
+
+
+class PedestrianPopulation:
+    """All pedestrians of an episode, as a pool of array slots."""
+
+    def __init__(
+        self,
+        scenario: ScenarioConfig,
+        geometry: RoadGeometry,
+        decision_model: CrossingDecisionModel,
+        rng: np.random.Generator,
+        dt: float,
+        history_length: int = 8,
+    ) -> None:
+        self.scenario = scenario
+        self.config: PedestrianConfig = scenario.pedestrians
+        self.geometry = geometry
+        self.decision_model = decision_model
+        self.rng = rng
+        self.dt = float(dt)
+        steps = HISTORY_INTERVAL / dt
+        if abs(steps - round(steps)) > 1e-9 or round(steps) < 1:
+            raise ValueError(f"dt={dt} must divide the {HISTORY_INTERVAL} s history interval")
+        self.history_every = round(steps)
+        self.history_length = history_length
+        n = self.config.max_pedestrians
+        self.capacity = n
+        self.state = np.zeros(n, dtype=np.int64)
+        self.ids = np.full(n, -1, dtype=np.int64)
+        self.position = np.zeros((n, 2))
+        self.velocity = np.zeros((n, 2))
+        self.radius = np.full(n, self.config.radius)
+        self.desired_speed = np.ones(n)
+        self.base_speed = np.ones(n)
+        self.side = np.ones(n)  # +1 starts south (walks north), −1 starts north
+        self.intends = np.zeros(n, dtype=bool)
+        self.crossing_x = np.zeros(n)
+        self.waypoint = np.zeros((n, 2))
+        self.goal = np.zeros((n, 2))
+        self.critical_gap = np.full(n, 5.5)
+        self.phase = np.full(n, math.pi / 2)
+        self.distracted = np.zeros(n, dtype=bool)
+        self.runs = np.zeros(n, dtype=bool)
+        self.hesitate_at = np.full(n, np.inf)  # fraction of the crossing at which to pause
+        self.hesitate_left = np.zeros(n)
+        self.turn_back_at = np.full(n, np.inf)
+        self.red_violator = np.zeros(n, dtype=bool)
+        self.jaywalker = np.zeros(n, dtype=bool)
+        self.crossed_on_red = np.zeros(n, dtype=bool)
+        self.wait_time = np.zeros(n)
+        self.group = np.full(n, -1, dtype=np.int64)
+        self.force_intensity = np.full(n, self.config.social_force.ped_intensity)
+        self.turning_back = np.zeros(n, dtype=bool)  # walking back to the start kerb after turning back
+        self.accepted_gap = np.full(n, np.nan)  # gap (s) at the last start of a crossing (evaluation only)
+        self.history = np.zeros((n, history_length, 2))
+        self.next_id = 0
+        self.next_group = 1_000_000  # random groups get ids far from scenario-given ones
+        self.step_count = 0
+        self.time = 0.0
+        self.events: list[BehaviourEvent] = []
+        self._pending = sorted(self.config.spawns, key=lambda s: s.time)
+        self._kerb_y = (geometry.kerb_south - KERB_STANDOFF, geometry.kerb_north + KERB_STANDOFF)
+        self._kerb_lines = (float(geometry.kerb_south), float(geometry.kerb_north))
+        """(south, north) kerb y: the edges of the carriageway."""
+        self._road_length = float(scenario.road.length)
+        rect = geometry.crossing_rect
+        self._zebra_box = (
+            geometry.has_crossing,
+            float(rect.x_min),
+            float(rect.x_max),
+            float(rect.y_min),
+            float(rect.y_max),
+        )
+        """(has a crossing, x min, x max, y min, y max) of the zebra area, as `_geometric_masks` takes it."""
+        self._zebra_span = (float(scenario.crossing.position), float(scenario.crossing.width))
+        """(centre x, width) of the crossing, as `_anyone_at_zebra` takes it."""
+        self._force_parameters = model_parameters(self.config.social_force)
+        """The social-force config as the kernels take it (unpacked once, not every step)."""
+        self._walk_y = (
+            geometry.kerb_south - 0.55 * scenario.road.sidewalk_width,
+            geometry.kerb_north + 0.55 * scenario.road.sidewalk_width,
+        )
+        self._speed_scale = 0.9 if scenario.night else 1.0
+
+    # ------------------------------------------------------------------ spawning
+    @property
+    def active(self) -> np.ndarray:
+        """(n,) mask of slots in use."""
+        return self.state != INACTIVE
+
+    def _draw_speed(self) -> float:
+        c = self.config
+        v = self.rng.normal(c.desired_speed_mean, c.desired_speed_std)
+        return float(np.clip(v, c.desired_speed_min, c.desired_speed_max)) * self._speed_scale
+
+    def _draw_critical_gap(self) -> float:
+        b = self.config.behaviour
+        mean, sd = b.critical_gap_mean, b.critical_gap_std
+        sigma2 = math.log(1.0 + (sd / mean) ** 2)
+        value = self.rng.lognormal(math.log(mean) - sigma2 / 2, math.sqrt(sigma2))
+        return max(b.critical_gap_floor, float(value))
+
+    def _draw_phase(self) -> float:
+        b = self.config.behaviour
+        if b.phase_distribution == "classical":
+            return math.pi / 2
+        if b.phase_distribution == "uniform":
+            return float(self.rng.uniform(b.phase_mean - b.phase_std, b.phase_mean + b.phase_std))
+        return float(self.rng.normal(b.phase_mean, b.phase_std))
+
+    def spawn(self, spawn: PedestrianSpawn) -> int | None:
+        """Place one pedestrian; returns its slot, or None if the pool is full."""
+        free = np.flatnonzero(self.state == INACTIVE)
+        if free.size == 0:
+            return None
+        i = int(free[0])
+        b = self.config.behaviour
+        geo = self.geometry
+        side = 1.0 if spawn.side == "south" else -1.0
+        start_y = self._walk_y[0] if side > 0 else self._walk_y[1]
+        far_y = self._walk_y[1] if side > 0 else self._walk_y[0]
+        self.ids[i] = self.next_id
+        self.next_id += 1
+        self.side[i] = side
+        self.position[i] = (spawn.x, start_y)
+        self.velocity[i] = 0.0
+        self.radius[i] = spawn.radius if spawn.radius is not None else self.config.radius
+        # Night slows everyone, explicitly placed pedestrians included (_draw_speed applies it itself).
+        speed = (
+            spawn.desired_speed * self._speed_scale if spawn.desired_speed is not None else self._draw_speed()
+        )
+        self.distracted[i] = (
+            spawn.distracted if spawn.distracted is not None else self.rng.random() < b.distraction_rate
+        )
+        if self.distracted[i]:
+            speed *= 0.8  # phone users walk about 20% slower
+        self.base_speed[i] = speed
+        self.desired_speed[i] = speed
+        self.critical_gap[i] = (
+            spawn.critical_gap if spawn.critical_gap is not None else self._draw_critical_gap()
+        )
+        if self.distracted[i]:
+            self.critical_gap[i] *= 0.7  # a cursory glance: shorter gaps get accepted
+        self.phase[i] = spawn.phase if spawn.phase is not None else self._draw_phase()
+        self.runs[i] = spawn.runs if spawn.runs is not None else self.rng.random() < b.running_rate
+        self.red_violator[i] = self.rng.random() < b.red_light_rate
+        self.group[i] = spawn.group
+        self.intends[i] = spawn.crosses
+        self.wait_time[i] = 0.0
+        self.hesitate_left[i] = 0.0
+        self.crossed_on_red[i] = False
+        self.hesitate_at[i] = self.rng.uniform(0.2, 0.8) if self.rng.random() < b.hesitation_rate else np.inf
+        self.turn_back_at[i] = self.rng.uniform(0.1, 0.4) if self.rng.random() < b.turn_back_rate else np.inf
+        self.force_intensity[i] = self.config.social_force.ped_intensity
+        self.turning_back[i] = False
+        self.accepted_gap[i] = np.nan
+        if not spawn.crosses:
+            cx = spawn.x
+            self.jaywalker[i] = False
+        elif spawn.crossing_x is not None:
+            cx = spawn.crossing_x
+            self.jaywalker[i] = not (
+                geo.has_crossing and geo.crossing_rect.x_min <= cx <= geo.crossing_rect.x_max
+            )
+        elif geo.has_crossing and spawn.crosses:
+            half = max(0.0, self.scenario.crossing.width / 2 - 0.6)
+            cx = self.scenario.crossing.position + self.rng.uniform(-half, half)
+            self.jaywalker[i] = False
+        else:
+            cx = spawn.x
+            self.jaywalker[i] = spawn.crosses
+        self.crossing_x[i] = cx
+        self.history[i] = self.position[i]
+        if spawn.crosses:
+            self.state[i] = APPROACHING
+            self.waypoint[i] = (cx, self._kerb_y[0] if side > 0 else self._kerb_y[1])
+            onward = np.sign(cx - spawn.x) or (1.0 if self.rng.random() < 0.5 else -1.0)
+            self.goal[i] = (cx + onward * self.rng.uniform(8.0, 20.0), far_y)
+            if self.jaywalker[i] and geo.has_crossing:  # on an unmarked road every crossing is "away"
+                self._log(i, "jaywalk")
+        else:
+            self.state[i] = LEAVING
+            direction = 1.0 if spawn.x < self.scenario.crossing.position else -1.0
+            self.goal[i] = (spawn.x + direction * self.rng.uniform(40.0, 60.0), start_y)
+            self.waypoint[i] = self.goal[i]
+        if self.distracted[i]:
+            self._log(i, "distracted")
+        return i
+
+    def _random_arrivals(self) -> None:
+        """Poisson arrivals on both sidewalks near the crossing."""
+        c = self.config
+        if c.spawn_rate <= 0:
+            return
+        count = self.rng.poisson(c.spawn_rate / 60.0 * self.dt)
+        for _ in range(count):
+            side = "south" if self.rng.random() < 0.5 else "north"
+            offset = self.rng.uniform(4.0, max(4.5, c.spawn_extent)) * (1 if self.rng.random() < 0.5 else -1)
+            x = float(np.clip(self.scenario.crossing.position + offset, 1.0, self.scenario.road.length - 1.0))
+            crosses = bool(self.rng.random() < c.cross_fraction)
+            crossing_x = None
+            if crosses and self.rng.random() < c.behaviour.jaywalk_rate:
+                crossing_x = x  # crosses where it stands, away from the zebra
+            group = -1
+            companion = self.rng.random() < c.group_probability
+            if companion:
+                group = self.next_group
+                self.next_group += 1
+            spawn = PedestrianSpawn(x=x, side=side, crosses=crosses, crossing_x=crossing_x, group=group)
+            first = self.spawn(spawn)
+            if companion and first is not None:
+                mate = PedestrianSpawn(
+                    x=x - 0.8 * np.sign(offset),
+                    side=side,
+                    crosses=crosses,
+                    crossing_x=self.crossing_x[first] + 0.6,
+                    group=group,
+                )
+                self.spawn(mate)
+
+    # ------------------------------------------------------------------ per step
+    def _log(self, i: int, kind: str) -> None:
+        self.events.append(BehaviourEvent(time=self.time, pedestrian_id=int(self.ids[i]), kind=kind))
+
+    def step(self, time: float, cars: CarSnapshot, pedestrian_green: bool | None) -> None:
+        """Advance decisions and desired velocities by one step (physics integrates positions)."""
+        self.time = time
+        self.events = []
+        while self._pending and self._pending[0].time <= time + 1e-9:
+            self.spawn(self._pending.pop(0))
+        self._random_arrivals()
+        self._update_states(cars, pedestrian_green)
+        if self.config.behaviour.update_force_intensity:
+            self._update_force_intensity()
+        self._update_velocities(cars)
+
+    def _update_states(self, cars: CarSnapshot, pedestrian_green: bool | None) -> None:
+        if not self.state.any():
+            return  # nobody around: nothing to decide
+        st = self.state
+        # Each transition applies to the state held at the start of the step (one transition per step),
+        # because `arrived` refers to the waypoint of that state. APPROACHING → WAITING at the kerb first.
+        arrived, before, waiting, acts, any_acts = begin_transitions(
+            self.position,
+            self.velocity,
+            self.waypoint,
+            st,
+            self.intends,
+            self.group,
+            self.side,
+            *self._kerb_lines,
+            self.wait_time,
+            self.turning_back,
+            self.dt,
+            self.hesitate_at,
+            self.turn_back_at,
+        )
+        # WAITING: decide.
+        if waiting.size:
+            red, gap, seen, critical_gap, phase, waited, red_violator = waiting_context(
+                waiting,
+                pedestrian_green is False,
+                self.jaywalker,
+                self.distracted,
+                self.critical_gap,
+                self.phase,
+                self.wait_time,
+                self.red_violator,
+                self.crossing_x,
+                cars.x,
+                cars.direction,
+                cars.half_length,
+                cars.speed,
+            )
+            # A distracted pedestrian looks up late: `seen` is the gap it saw DISTRACTED_LOOK_DELAY ago.
+            ctx = DecisionContext(
+                gap=seen,
+                critical_gap=critical_gap,
+                phase=phase,
+                waited=waited,
+                red=red,
+                red_violator=red_violator,
+                dt=self.dt,
+            )
+            prob = self.decision_model.probability(ctx)
+            go = self.rng.random(waiting.size) < prob
+            # Groups move together: members wait at the kerb for companions still walking up (for at most
+            # GROUP_MAX_WAIT), and if one member goes, waiting companions go too.
+            groups = self.group[waiting]
+            if go.any() and np.any(groups >= 0):
+                walking_up = self.group[(self.state == APPROACHING) & self.intends & (self.group >= 0)]
+                patient = waited < GROUP_MAX_WAIT
+                held = (groups >= 0) & np.isin(groups, walking_up) & patient
+                go &= ~held
+                moving_groups = groups[go & (groups >= 0)]
+                go |= (groups >= 0) & np.isin(groups, moving_groups) & ~held
+            for k in np.flatnonzero(go):
+                self.accepted_gap[waiting[k]] = gap[k]
+                self._start_crossing(int(waiting[k]), bool(red[k]))
+        # CROSSING: irrational acts (rare: Python handles them, drawing from the RNG in slot order).
+        if any_acts:
+            for i in np.flatnonzero(acts & HESITATES):
+                self.hesitate_at[i] = np.inf
+                self.hesitate_left[i] = self.rng.uniform(1.0, 2.5)
+                self._log(i, "hesitate")
+            for i in np.flatnonzero(acts & TURNS_BACK):
+                self.turn_back_at[i] = np.inf
+                # Head back to the kerb it came from (its side is unchanged), wait there and re-decide.
+                self.state[i] = APPROACHING
+                self.turning_back[i] = True
+                start_kerb = self._kerb_y[0] if self.side[i] > 0 else self._kerb_y[1]
+                self.waypoint[i] = (self.position[i, 0], start_kerb)
+                self.desired_speed[i] = self.base_speed[i] * 1.2
+                self._log(i, "turn_back")
+        # CROSSING → LEAVING past the far kerb; LEAVING → despawn at the goal or off the map.
+        finish_transitions(
+            st,
+            before,
+            arrived,
+            self.waypoint,
+            self.goal,
+            self.desired_speed,
+            self.base_speed,
+            self.hesitate_left,
+            self.ids,
+            self.velocity,
+            self.position,
+            self.dt,
+            self._road_length,
+        )
+
+    def _start_crossing(self, i: int, red: bool) -> None:
+        self.state[i] = CROSSING
+        far = self._kerb_y[1] if self.side[i] > 0 else self._kerb_y[0]
+        self.waypoint[i] = (self.crossing_x[i] + self.rng.normal(0.0, 0.2), far)
+        self.crossed_on_red[i] = red
+        self._log(i, "start_crossing")
+        if red:
+            self._log(i, "red_light")
+        if self.runs[i]:
+            self.desired_speed[i] = min(2.0 * self.base_speed[i], 3.5)
+            self._log(i, "run")
+
+    def anyone_at_zebra(self, on_crossing: np.ndarray) -> bool:
+        """Whether anyone waits by the crossing (jaywalkers aside) or is on it (`on_crossing`)."""
+        return anyone_at_zebra(self.state, self.crossing_x, self.jaywalker, on_crossing, *self._zebra_span)
+
+    def irrational_now(self) -> np.ndarray:
+        """(n,) visibly acting irrationally this step (what others can see and react to).
+
+        Running, crossing on red or away from the zebra, hesitating mid-crossing, turning back, or being on
+        the road with a phone.
+        """
+        crossing = self.state == CROSSING
+        on_road = self.on_road()
+        return self.active & (
+            (crossing & (self.runs | self.crossed_on_red | (self.jaywalker & self.geometry.has_crossing)))
+            | (self.hesitate_left > 0)
+            | self.turning_back
+            | (self.distracted & on_road)
+        )
+
+    def _update_force_intensity(self) -> None:
+        """Seed Case 2: QLB-updated ped–ped intensity from the irrational fraction of neighbours in view."""
+        from crossing_env.pedestrians.behaviour import irrational_neighbour_fraction, updated_ped_intensity
+
+        fraction = irrational_neighbour_fraction(self.position, self.active, self.irrational_now())
+        self.force_intensity = updated_ped_intensity(self.config.social_force.ped_intensity, fraction)
+
+    def _update_velocities(self, cars: CarSnapshot) -> None:
+        rows, v0, stay = walk_inputs(
+            self.state, self.hesitate_left, self.desired_speed, self.position, *self._kerb_lines
+        )
+        if rows.size == 0:
+            return
+        sf = self.config.social_force
+        walk_step(
+            rows,
+            self.position,
+            self.velocity,
+            self.waypoint,
+            v0,
+            self.radius,
+            stay,
+            cars.boxes,
+            *self._kerb_lines,
+            self.force_intensity,
+            self.dt,
+            sf.max_speed_factor,
+            self._force_parameters,
+        )
+
+    def record_history(self) -> None:
+        """Append the current positions to the 0.4 s history (call once per step, after physics)."""
+        self.step_count += 1
+        if self.step_count % self.history_every == 0:
+            self.history[:, :-1] = self.history[:, 1:]
+            self.history[:, -1] = self.position
+
+    def masks(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(on the carriageway, on the zebra, legal) per slot; the world refreshes them every step.
+
+        Legal: on the zebra and not against red, or not on the road at all. Inactive slots are off the road.
+        """
+        return geometric_masks(
+            self.state,
+            self.position,
+            *self._kerb_lines,
+            *self._zebra_box,
+            self.crossed_on_red,
+            self.jaywalker,
+        )
+
+    def on_road(self) -> np.ndarray:
+        """(n,) centre on the carriageway."""
+        y = self.position[:, 1]
+        return (y > self.geometry.kerb_south) & (y < self.geometry.kerb_north) & self.active

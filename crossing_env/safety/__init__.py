@@ -1,0 +1,33 @@
+"""Ground-truth safety measures shared by the env's reward and the evaluator.
+
+Surrogate-safety geometry (TTC, DRAC, separation, occupancy) and the per-episode accumulator of TTC, PET,
+braking, yield compliance and delay.
+"""
+
+from crossing_env.safety.episode import EpisodeMetrics
+from crossing_env.safety.geometry import (
+    box_box_separation,
+    box_circle_separation,
+    box_circle_ttc,
+    crossing_drac,
+    following_drac,
+    following_ttc,
+    rect_occupancy_interval,
+    time_to_collision,
+)
+from crossing_env.safety.results import EpisodeResult, MetricsConfig, json_safe
+
+__all__ = [
+    "EpisodeMetrics",
+    "EpisodeResult",
+    "MetricsConfig",
+    "box_box_separation",
+    "box_circle_separation",
+    "box_circle_ttc",
+    "crossing_drac",
+    "following_drac",
+    "following_ttc",
+    "json_safe",
+    "rect_occupancy_interval",
+    "time_to_collision",
+]

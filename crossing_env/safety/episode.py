@@ -1,0 +1,548 @@
+"""Safety and efficiency of one episode, accumulated from the world's ground truth, never from observations.
+
+Definitions follow `shared/docs/safety-metrics.md` (SUMO SSM device names and defaults where they exist):
+time to collision (TTC), post-encroachment time (PET), deceleration rate to avoid a crash (DRAC), minimum
+separation, hard braking, yield compliance at the crossing, ego delay, time to pass, pedestrian waiting
+time and collisions. Safety and efficiency are reported together: a car that never moves is "safe".
+
+`EpisodeMetrics` is a per-step accumulator fed with `GroundTruth` snapshots, returning an `EpisodeResult`
+(`crossing_env.safety.results`); the geometry is in `crossing_env.safety.geometry`; aggregation across
+episodes lives in `crossing_eval.statistics`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import ClassVar
+
+import numpy as np
+
+from crossing_env.safety.geometry import (
+    _box_disc_ttc,
+    _crossing_drac_scalar,
+    _slabs,
+)
+from crossing_env.safety.results import EpisodeResult, MetricsConfig
+from crossing_env.types import ConflictArea, FloatArray, GroundTruth, PedState
+from scenarios.config import ScenarioConfig
+
+__all__ = ["EpisodeMetrics"]
+
+_INF = math.inf
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Per-pedestrian state table (ids → rows), vectorised
+# ---------------------------------------------------------------------------------------------------------
+
+_OPEN, _COMPLIANT, _VIOLATED, _WAIVED, _DECLINED = 1, 2, 3, 4, 5
+_NO_STATE = -1
+_APPROACHING, _WAITING, _CROSSING = int(PedState.APPROACHING), int(PedState.WAITING), int(PedState.CROSSING)
+
+
+class _PedTable:
+    """Rows of per-pedestrian episode state, keyed by id; lookups are vectorised (sorted ids)."""
+
+    _FLOAT_COLS: ClassVar[tuple[str, ...]] = (
+        "last_entry",
+        "last_exit",
+        "wait_start",
+        "offer_time",
+    )
+    _FILL: ClassVar[dict[str, float]] = {
+        "last_entry": -_INF,
+        "last_exit": -_INF,
+        "wait_start": math.nan,
+        "offer_time": 0.0,
+    }
+
+    def __init__(self) -> None:
+        self.ids = np.empty(0, dtype=np.int64)
+        self.in_ca = np.empty(0, dtype=bool)
+        self.entered_half = np.empty(0, dtype=bool)
+        self.status = np.empty(0, dtype=np.int8)
+        self.prev_state = np.empty(0, dtype=np.int64)
+        for name in self._FLOAT_COLS:
+            setattr(self, name, np.empty(0, dtype=np.float64))
+
+    def rows(self, ids: np.ndarray) -> np.ndarray:
+        """Row index of every id, adding rows for ids seen for the first time."""
+        n = self.ids.shape[0]
+        pos = np.searchsorted(self.ids, ids)
+        if n == 0 or np.count_nonzero(self.ids[np.minimum(pos, n - 1)] != ids):
+            self._add(ids)
+            pos = np.searchsorted(self.ids, ids)
+        return pos
+
+    def _add(self, ids: np.ndarray) -> None:
+        new = np.setdiff1d(np.unique(ids), self.ids)
+        all_ids = np.concatenate([self.ids, new])
+        order = np.argsort(all_ids, kind="stable")
+        k = new.shape[0]
+        self.ids = all_ids[order]
+        self.in_ca = np.concatenate([self.in_ca, np.zeros(k, dtype=bool)])[order]
+        self.entered_half = np.concatenate([self.entered_half, np.zeros(k, dtype=bool)])[order]
+        self.status = np.concatenate([self.status, np.zeros(k, dtype=np.int8)])[order]
+        self.prev_state = np.concatenate([self.prev_state, np.full(k, _NO_STATE, dtype=np.int64)])[order]
+        for name in self._FLOAT_COLS:
+            col = np.concatenate([getattr(self, name), np.full(k, self._FILL[name])])[order]
+            setattr(self, name, col)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Episode accumulator
+# ---------------------------------------------------------------------------------------------------------
+
+
+class EpisodeMetrics:
+    """Accumulates safety and efficiency metrics over one episode from `GroundTruth` snapshots.
+
+    Call `update(gt)` after every environment step (cheap, vectorised over pedestrians and vehicles) and
+    `result()` at the end. Conventions and simplifications:
+
+    - TTC to pedestrians: exact box–disc TTC (`box_circle_ttc`), not evaluated while the ego is stopped
+      (nuPlan). TTC to vehicles: following TTC to vehicles ahead whose footprint overlaps the ego's
+      laterally (same lane); vehicles behind the ego and oncoming traffic are not scored.
+    - Conflict area (CA) = `GroundTruth.conflict_area` (ego lane × crossing). The ego occupies it when its
+      box overlaps the rectangle, a pedestrian when its centre is on the carriageway (`on_road`, so people
+      at the kerb do not count) and its disc's bounding square overlaps the rectangle (conservative by at
+      most r·(√2 − 1) ≈ 0.12 m at the rectangle's corners; it shares the slab test with the DRAC).
+      Entry and exit times have the resolution of one step.
+    - PET: at each ego entry, one pedestrian-first PET per pedestrian that left the CA since the ego's
+      previous entry; at each pedestrian entry, one ego-first PET if the ego left the CA since that
+      pedestrian's previous entry. Entering while the other is inside counts as a simultaneous occupancy.
+    - Crossing DRAC: for each pedestrian whose constant-velocity disc (rectangle grown by its radius) will
+      occupy the CA before the ego front reaches it and still occupy it then, `crossing_drac` of the ego
+      with t_A = the pedestrian's exit time; pedestrians are never asked to brake (ego-first case unscored).
+    - Yield compliance (doc §7, simplified): only at a zebra, or at a signalised crossing while the
+      pedestrian signal is green. A pedestrian creates one obligation per episode when, with the ego front
+      farther than v²/(2·`yield_deceleration`) from the stop line, it is on the crossing in the ego's half
+      (or, with `far_half_counts`, in the other half walking towards it) or waiting at the kerb within
+      `kerb_margin` of the crossing. The obligation is violated if the ego footprint is in the CA while it
+      is open; it ends compliant when the pedestrian, having entered the ego's half, is outside it again
+      (crossed or turned back), or when the ego has stood still within `offer_distance` of the stop line
+      for `offer_timeout` while the pedestrian kept waiting (declined offer); it is dropped (not counted)
+      if the pedestrian leaves the kerb without crossing (state neither `WAITING` nor `CROSSING`, centre
+      off the road) before entering the ego's half. Obligations still open at the
+      end count as compliant. The German "influenced" test (pedestrian forced to slow down) is not
+      applied: it would need the pedestrian's desired speed, which the ground truth does not carry.
+    - Delay: from t = 0 at `EgoConfig.x` until the ego centre passes `conflict_area.x_max + delay_margin`
+      (linear interpolation between steps), minus that distance at the speed limit.
+    - Pedestrian waiting time: first step seen `WAITING` → first step seen `CROSSING`; 0 for pedestrians
+      that step off straight from `APPROACHING`.
+    """
+
+    def __init__(self, scenario: ScenarioConfig, dt: float, config: MetricsConfig | None = None) -> None:
+        """Create an accumulator for one episode of `scenario` stepped every `dt` seconds."""
+        if not (isinstance(dt, int | float) and math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f"EpisodeMetrics: dt must be a positive finite number of seconds, got {dt!r}")
+        self.scenario = scenario
+        self.dt = float(dt)
+        self.config = config if config is not None else MetricsConfig()
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything (reuse the accumulator for a new episode of the same scenario)."""
+        self.step_ttc = _INF
+        """Minimum ego–pedestrian TTC of the latest update (inf if none or the ego stands), for plots."""
+        self.step_separation = _INF
+        """Minimum ego–pedestrian footprint distance of the latest update (inf without pedestrians)."""
+        self.step_drac = 0.0
+        """Crossing DRAC of the latest update (0 if no pedestrian holds the conflict area first)."""
+        self._steps = 0
+        self._time = 0.0
+        self._start_x = float(self.scenario.ego.x)
+        self._last_x = self._start_x
+        self._last_front = math.nan
+        self._last_rear = math.nan
+        self._last_t = 0.0
+        # collisions
+        self._ped_collisions = 0
+        self._veh_collisions = 0
+        self._compliant_collisions = 0
+        self._max_impact = math.nan
+        # TTC / separation / DRAC
+        self._min_ttc = _INF
+        self._min_ttc_veh = _INF
+        self._serious_time = 0.0
+        self._encounter_time = 0.0
+        self._min_sep = _INF
+        self._min_sep_veh = _INF
+        self._clearance_time = 0.0
+        self._max_drac_cross = 0.0
+        self._max_drac_follow = 0.0
+        # PET
+        self._ego_in_ca = False
+        self._ego_last_entry = -_INF
+        self._ego_last_exit = -_INF
+        self._pets_ped_first: list[float] = []
+        self._pets_ego_first: list[float] = []
+        self._simultaneous = 0
+        # braking
+        self._hard_steps = 0
+        self._hard_events = 0
+        self._was_hard = False
+        self._comfort_steps = 0
+        self._max_decel = 0.0
+        # efficiency
+        self._target_x = math.nan
+        self._reach_time = math.nan
+        self._trigger_time = math.nan
+        self._clear_time = math.nan
+        self._waits: list[float] = []
+        self._peds = _PedTable()
+        self._ca: ConflictArea | None = None
+        self._ca_arrays: tuple[np.ndarray, np.ndarray] = (np.zeros(2), np.zeros(2))
+        self._size: tuple[float, float] = (math.nan, math.nan)
+        self._half: np.ndarray | None = None
+
+    # -- per step -------------------------------------------------------------------------------------
+
+    def update(self, gt: GroundTruth) -> None:
+        """Add one ground-truth snapshot (call once per environment step, in time order)."""
+        cfg = self.config
+        t = float(gt.time)
+        if t < self._last_t:
+            raise ValueError(f"EpisodeMetrics.update: GroundTruth.time went backwards ({t} < {self._last_t})")
+        ca = gt.conflict_area
+        ego_p = gt.ego_position
+        ego_v = gt.ego_velocity
+        ex, ey = float(ego_p[0]), float(ego_p[1])
+        evx = float(ego_v[0])
+        speed = math.hypot(evx, float(ego_v[1]))
+        length, width = gt.ego_size
+        front, rear = ex + 0.5 * length, ex - 0.5 * length
+        self._steps += 1
+        if self._steps == 1:
+            self._target_x = ca.x_max + cfg.delay_margin
+            self._last_front = self._start_x + 0.5 * length
+            self._last_rear = self._start_x - 0.5 * length
+
+        # Braking and comfort.
+        acc = float(gt.ego_acceleration)
+        hard = acc <= -cfg.hard_braking_threshold
+        self._hard_steps += hard
+        self._hard_events += hard and not self._was_hard
+        self._was_hard = hard
+        self._comfort_steps += acc <= -cfg.comfort_deceleration
+        if -acc > self._max_decel:
+            self._max_decel = -acc
+
+        # Efficiency: interpolated crossing times of the delay target, the pass trigger and the clearing.
+        t0 = self._last_t
+        if math.isnan(self._reach_time) and ex >= self._target_x:
+            self._reach_time = _cross_time(t0, t, self._last_x, ex, self._target_x)
+        trig = ca.x_min - cfg.pass_trigger_distance
+        if math.isnan(self._trigger_time) and front >= trig:
+            self._trigger_time = _cross_time(t0, t, self._last_front, front, trig)
+        if math.isnan(self._clear_time) and rear >= ca.x_max:
+            self._clear_time = _cross_time(t0, t, self._last_rear, rear, ca.x_max)
+        self._last_t, self._last_x, self._last_front, self._last_rear = t, ex, front, rear
+
+        # Ego occupancy of the conflict area.
+        ego_in = (
+            front > ca.x_min
+            and rear < ca.x_max
+            and ey + 0.5 * width > ca.y_min
+            and ey - 0.5 * width < ca.y_max
+        )
+        ego_entered = ego_in and not self._ego_in_ca
+        if not ego_in and self._ego_in_ca:
+            self._ego_last_exit = t
+        prev_ego_entry = self._ego_last_entry
+        if ego_entered:
+            self._ego_last_entry = t
+        self._ego_in_ca = ego_in
+
+        # Collisions.
+        for ev in gt.collisions:
+            if ev.kind == "pedestrian":
+                self._ped_collisions += 1
+                self._compliant_collisions += bool(ev.compliant)
+                if not ev.relative_speed <= self._max_impact:  # also replaces the initial nan
+                    self._max_impact = float(ev.relative_speed)
+            else:
+                self._veh_collisions += 1
+
+        if self._half is None or self._size != (length, width):
+            self._size = (length, width)
+            self._half = np.array([0.5 * length, 0.5 * width])
+        self.step_ttc, self.step_separation, self.step_drac = _INF, _INF, 0.0
+        if gt.vehicle_ids.shape[0]:
+            self._update_vehicles(gt, evx, self._half)
+        if gt.pedestrian_ids.shape[0]:
+            self._update_pedestrians(gt, t, ego_in, ego_entered, prev_ego_entry, front, speed, self._half)
+        self._time = t
+
+    def _update_vehicles(self, gt: GroundTruth, evx: float, half: np.ndarray) -> None:
+        """Following TTC / DRAC against vehicles ahead in the ego's lane, and box–box separation."""
+        q = gt.vehicle_positions - gt.ego_position
+        reach = half + 0.5 * gt.vehicle_sizes  # half extents of the Minkowski sum of both boxes
+        d = np.abs(q) - reach
+        dx, dy = d[:, 0], d[:, 1]
+        sep = np.hypot(np.maximum(dx, 0.0), np.maximum(dy, 0.0)) + np.minimum(np.maximum(dx, dy), 0.0)
+        min_sep = float(sep.min())
+        if min_sep < self._min_sep_veh:
+            self._min_sep_veh = min_sep
+        ahead = (q[:, 0] > 0.0) & (dy < 0.0)  # in front and overlapping laterally: same lane
+        if np.count_nonzero(ahead):
+            gap = dx[ahead]  # bumper-to-bumper distance (q_x > 0)
+            closing = evx - gt.vehicle_velocities[ahead, 0]
+            fast = closing > 0.0
+            if np.count_nonzero(fast):
+                gap, closing = gap[fast], closing[fast]
+                with np.errstate(divide="ignore"):
+                    ttc = float((np.maximum(gap, 0.0) / closing).min())
+                    drac = float((0.5 * closing * closing / np.maximum(gap, 0.0)).max())
+                self._min_ttc_veh = min(self._min_ttc_veh, ttc)
+                self._max_drac_follow = max(self._max_drac_follow, drac)
+
+    def _conflict_arrays(self, ca: ConflictArea) -> tuple[np.ndarray, np.ndarray]:
+        """Low and high corners of the conflict area as arrays, cached across steps."""
+        if ca != self._ca:
+            self._ca = ca
+            self._ca_arrays = (np.array([ca.x_min, ca.y_min]), np.array([ca.x_max, ca.y_max]))
+        return self._ca_arrays
+
+    def _update_pedestrians(
+        self,
+        gt: GroundTruth,
+        t: float,
+        ego_in: bool,
+        ego_entered: bool,
+        prev_ego_entry: float,
+        front: float,
+        speed: float,
+        half: np.ndarray,
+    ) -> None:
+        """Per-pedestrian TTC, separation, DRAC, PET, yielding and waiting, vectorised over pedestrians."""
+        cfg = self.config
+        dt = self.dt
+        ca = gt.conflict_area
+        tab = self._peds
+        rows = tab.rows(gt.pedestrian_ids)
+        pp: FloatArray = gt.pedestrian_positions
+        pv: FloatArray = gt.pedestrian_velocities
+        rad = gt.pedestrian_radii
+        ca_lo, ca_hi = self._conflict_arrays(ca)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            # Separation: signed distance from each disc to the ego box.
+            q = pp - gt.ego_position
+            d = np.abs(q) - half
+            sep = np.hypot(np.maximum(d[:, 0], 0.0), np.maximum(d[:, 1], 0.0))
+            sep += np.minimum(np.maximum(d[:, 0], d[:, 1]), 0.0) - rad
+            min_sep = float(sep.min())
+            self.step_separation = min_sep
+            if min_sep < self._min_sep:
+                self._min_sep = min_sep
+            if min_sep < cfg.clearance:
+                self._clearance_time += dt
+            # TTC: exact box–disc, only while the ego moves.
+            if speed > cfg.ttc_min_ego_speed:
+                min_ttc = float(_box_disc_ttc(q, pv - gt.ego_velocity, half, rad).min())
+                self.step_ttc = min_ttc
+                if min_ttc < self._min_ttc:
+                    self._min_ttc = min_ttc
+                if min_ttc < cfg.serious_ttc:
+                    self._serious_time += dt
+                if min_ttc < cfg.encounter_ttc:
+                    self._encounter_time += dt
+            # Conflict-area occupancy interval of each disc's bounding square (constant velocity).
+            margin = rad[:, None]
+            t_in, t_out = _slabs(pp, pv, ca_lo - margin, ca_hi + margin)
+            ped_in = (t_in <= 0.0) & (t_out >= 0.0) & gt.on_road
+            # Crossing DRAC: pedestrians holding the conflict area when the ego front would reach it.
+            d_b = ca.x_min - front
+            evx = float(gt.ego_velocity[0])
+            if d_b > 0.0 and evx > 0.0:
+                t_ego = d_b / evx
+                first = (t_in <= t_ego) & (t_out > t_ego)
+                if np.count_nonzero(first):
+                    # crossing_drac is non-decreasing in t_A, so the latest exit gives the maximum.
+                    drac = _crossing_drac_scalar(evx, d_b, float(t_out[first].max()))
+                    self.step_drac = drac
+                    if drac > self._max_drac_cross:
+                        self._max_drac_cross = drac
+
+        was_in = tab.in_ca[rows]
+        if ego_entered or np.count_nonzero(ped_in != was_in):
+            self._update_pet(t, rows, ped_in, was_in, ego_in, ego_entered, prev_ego_entry)
+
+        # Pedestrian waiting times (only on state changes).
+        states = gt.pedestrian_states
+        prev = tab.prev_state[rows]
+        changed = states != prev
+        if np.count_nonzero(changed):
+            self._update_waits(t, rows, states, prev, changed)
+
+        self._update_yielding(gt, rows, front, speed)
+
+    def _update_pet(
+        self,
+        t: float,
+        rows: np.ndarray,
+        ped_in: np.ndarray,
+        was_in: np.ndarray,
+        ego_in: bool,
+        ego_entered: bool,
+        prev_ego_entry: float,
+    ) -> None:
+        """Record conflict-area entries and exits and the PET pairs they close."""
+        tab = self._peds
+        tab.last_exit[rows[was_in & ~ped_in]] = t
+        # Pedestrian first: the ego enters after pedestrians that left since its previous entry.
+        if ego_entered:
+            self._simultaneous += int(np.count_nonzero(ped_in))  # pedestrians inside as the ego enters
+            last_exit = tab.last_exit[rows]
+            pair = ~ped_in & (last_exit > prev_ego_entry)
+            if np.count_nonzero(pair):
+                self._pets_ped_first.extend((t - last_exit[pair]).tolist())
+        # Ego first: a pedestrian enters after the ego left since that pedestrian's previous entry.
+        entered = ped_in & ~was_in
+        if np.count_nonzero(entered):
+            if ego_in and not ego_entered:
+                self._simultaneous += int(np.count_nonzero(entered))
+            elif not ego_in:
+                pair = entered & (tab.last_entry[rows] < self._ego_last_exit)
+                self._pets_ego_first.extend([t - self._ego_last_exit] * int(np.count_nonzero(pair)))
+            tab.last_entry[rows[entered]] = t
+        tab.in_ca[rows] = ped_in
+
+    def _update_waits(
+        self, t: float, rows: np.ndarray, states: np.ndarray, prev: np.ndarray, changed: np.ndarray
+    ) -> None:
+        """Kerb arrival → stepping off, from `PedState` transitions."""
+        tab = self._peds
+        tab.wait_start[rows[changed & (states == _WAITING)]] = t
+        step_off = changed & (states == _CROSSING) & ((prev == _WAITING) | (prev == _APPROACHING))
+        if np.count_nonzero(step_off):
+            r_off = rows[step_off]
+            ws = tab.wait_start[r_off]
+            self._waits.extend(np.where(np.isnan(ws), 0.0, t - ws).tolist())
+        # Leaving the kerb any other way (stepping off, giving up, vanishing) ends the wait.
+        tab.wait_start[rows[changed & (prev == _WAITING)]] = math.nan
+        tab.prev_state[rows] = states
+
+    def _update_yielding(self, gt: GroundTruth, rows: np.ndarray, front: float, speed: float) -> None:
+        """Open, resolve and check yield obligations (see the class docstring)."""
+        kind = self.scenario.crossing.kind
+        if kind == "none":
+            return
+        # At a signal, obligations open only on pedestrian green; ones opened earlier are still checked.
+        may_open = kind != "signalised" or bool(gt.signal_pedestrian_green)
+        cfg = self.config
+        ca = gt.conflict_area
+        tab = self._peds
+        status = tab.status[rows]
+        open_ = status == _OPEN
+        dist = ca.stop_line_x - front
+        can_open = may_open and dist > speed * speed / (2.0 * cfg.yield_deceleration)
+        candidates = can_open and np.count_nonzero((gt.on_crossing | gt.waiting) & (status == 0))
+        if not candidates and not np.count_nonzero(open_):
+            return  # nothing open and nobody who could open an obligation now
+
+        px = gt.pedestrian_positions[:, 0]
+        py = gt.pedestrian_positions[:, 1]
+        in_half = gt.on_road & (py >= ca.half_y_min) & (py <= ca.half_y_max)
+        near = np.abs(px - 0.5 * (ca.x_min + ca.x_max)) <= 0.5 * (ca.x_max - ca.x_min) + cfg.kerb_margin
+        waiting = gt.waiting & near
+
+        # Resolve open obligations from the pedestrians' side.
+        entered_half = tab.entered_half[rows] | (open_ & in_half)
+        cleared = open_ & entered_half & ~in_half
+        states = gt.pedestrian_states
+        gave_up = (states != _WAITING) & (states != _CROSSING) & ~gt.on_road  # walked off, never stepped on
+        dropped = open_ & ~entered_half & gave_up
+        status = np.where(cleared, _COMPLIANT, np.where(dropped, _WAIVED, status))
+
+        # Declined offers: the ego stands just before the stop line while the pedestrian keeps waiting.
+        if speed <= cfg.offer_stop_speed and 0.0 <= dist <= cfg.offer_distance:
+            offering = (status == _OPEN) & waiting
+            if np.count_nonzero(offering):
+                r_off = rows[offering]
+                tab.offer_time[r_off] += self.dt
+                status[offering] = np.where(
+                    tab.offer_time[r_off] >= cfg.offer_timeout - 1e-9, _DECLINED, _OPEN
+                )
+
+        # Open new obligations while the ego can still stop comfortably before the stop line.
+        if can_open:
+            relevant = gt.on_crossing & in_half
+            if cfg.far_half_counts:
+                toward = (0.5 * (ca.half_y_min + ca.half_y_max) - py) * gt.pedestrian_velocities[:, 1] > 0.0
+                relevant |= gt.on_crossing & ~in_half & toward
+            new = (status == 0) & (relevant | waiting)
+            status[new] = _OPEN
+            entered_half |= new & in_half
+
+        # Violations: the ego occupies the conflict area while an obligation is open.
+        if self._ego_in_ca:
+            status[status == _OPEN] = _VIOLATED
+        tab.status[rows] = status
+        tab.entered_half[rows] = entered_half
+
+    # -- end of episode -------------------------------------------------------------------------------
+
+    def result(self) -> EpisodeResult:
+        """Summarise the episode so far (can be called at any time; does not reset)."""
+        road = self.scenario.road
+        status = self._peds.status
+        compliant = int(np.count_nonzero((status == _OPEN) | (status == _COMPLIANT) | (status == _DECLINED)))
+        violations = int(np.count_nonzero(status == _VIOLATED))
+        passed = not math.isnan(self._reach_time)
+        delay = math.nan
+        if passed:
+            free_flow = (self._target_x - self._start_x) / road.speed_limit
+            delay = self._reach_time - free_flow
+        ttp = math.nan
+        if not math.isnan(self._clear_time):
+            trigger = 0.0 if math.isnan(self._trigger_time) else self._trigger_time
+            ttp = self._clear_time - trigger
+        pets_p = tuple(self._pets_ped_first)
+        pets_e = tuple(self._pets_ego_first)
+        return EpisodeResult(
+            scenario=self.scenario.name,
+            duration=self._time,
+            steps=self._steps,
+            collision=self._ped_collisions + self._veh_collisions > 0,
+            pedestrian_collisions=self._ped_collisions,
+            vehicle_collisions=self._veh_collisions,
+            compliant_pedestrian_collisions=self._compliant_collisions,
+            noncompliant_pedestrian_collisions=self._ped_collisions - self._compliant_collisions,
+            max_impact_speed=self._max_impact,
+            min_ttc=self._min_ttc,
+            min_ttc_vehicle=self._min_ttc_veh,
+            serious_conflict_time=self._serious_time,
+            encounter_time=self._encounter_time,
+            min_separation=self._min_sep,
+            min_vehicle_separation=self._min_sep_veh,
+            clearance_violation_time=self._clearance_time,
+            max_drac_crossing=self._max_drac_cross,
+            max_drac_following=self._max_drac_follow,
+            min_pet_pedestrian_first=min(pets_p, default=_INF),
+            min_pet_ego_first=min(pets_e, default=_INF),
+            pets_pedestrian_first=pets_p,
+            pets_ego_first=pets_e,
+            simultaneous_occupancies=self._simultaneous,
+            hard_braking_steps=int(self._hard_steps),
+            hard_braking_events=int(self._hard_events),
+            comfort_violation_steps=int(self._comfort_steps),
+            max_deceleration=self._max_decel,
+            yield_obligations=compliant + violations,
+            yield_compliant=compliant,
+            yield_violations=violations,
+            yield_offers_declined=int(np.count_nonzero(status == _DECLINED)),
+            passed_crossing=passed,
+            delay=delay,
+            time_to_pass=ttp,
+            distance_travelled=self._last_x - self._start_x,
+            pedestrian_wait_times=tuple(self._waits),
+            censored_waits=int(np.count_nonzero(~np.isnan(self._peds.wait_start))),
+        )
+
+
+def _cross_time(t0: float, t1: float, x0: float, x1: float, target: float) -> float:
+    """Time at which a coordinate moving linearly from x0 (t0) to x1 (t1) reaches target."""
+    if x1 <= x0 or target <= x0:
+        return t0 if target <= x0 else t1
+    return t0 + (t1 - t0) * (target - x0) / (x1 - x0)

@@ -1,0 +1,197 @@
+"""What one episode's safety and efficiency measurement is: `MetricsConfig` in, `EpisodeResult` out.
+
+JSON convention: `EpisodeResult.as_dict()` and `json_safe()` write non-finite floats (inf = "never",
+nan = "undefined / not reached") as ``None``; `EpisodeResult.from_dict()` restores them per field.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+__all__ = ["EpisodeResult", "MetricsConfig", "json_safe"]
+
+_INF = math.inf
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Configuration and per-episode result
+# ---------------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class MetricsConfig:
+    """Thresholds and the free choices of the operational definitions (SI units)."""
+
+    hard_braking_threshold: float = 3.0
+    """Deceleration (m/s², positive) counted as hard braking (crash-risk studies, ITE; `RewardConfig`)."""
+    comfort_deceleration: float = 4.05
+    """Deceleration (m/s²) beyond nuPlan's comfort bound (`ego_is_comfortable`, a ≥ −4.05)."""
+    yield_deceleration: float = 3.0
+    """Comfortable deceleration (m/s²) for the yield obligation's stopping distance v² / (2·b)."""
+    serious_ttc: float = 1.5
+    """TTC (s) below which a step counts as a serious conflict (Sacchi 2016; El-Basyouny 2013)."""
+    encounter_ttc: float = 3.0
+    """TTC (s) below which a step counts as an encounter (SUMO SSM logging threshold)."""
+    critical_pet: float = 1.5
+    """PET (s) below which an encounter is critical (Peesapati 2018)."""
+    clearance: float = 1.0
+    """Footprint distance (m) below which the ego is too close to a pedestrian (doc §5: 1–2 m typical)."""
+    ttc_min_ego_speed: float = 5e-3
+    """TTC is not evaluated while the ego is slower than this (m/s), as nuPlan: a stopped car is hit."""
+    delay_margin: float = 5.0
+    """The delay is measured until the ego centre is this far (m) past the crossing's far edge."""
+    pass_trigger_distance: float = 30.0
+    """Time to pass starts when the ego front is this close (m) to the crossing's near edge."""
+    kerb_margin: float = 1.0
+    """A waiting pedestrian counts for yielding if its x is within the crossing ± this margin (m)."""
+    far_half_counts: bool = True
+    """Pedestrians on the crossing in the opposite half walking towards the ego's half also create an
+    obligation (UK rule 195: once a pedestrian has moved onto the crossing)."""
+    offer_stop_speed: float = 0.1
+    """Ego speed (m/s) regarded as stopped when offering the way."""
+    offer_distance: float = 20.0
+    """The ego offers the way only when stopped within this distance (m) before the stop line."""
+    offer_timeout: float = 3.0
+    """Stopped time (s) after which a still-waiting pedestrian is taken to have declined the offer; the
+    obligation then ends as compliant (the car may go)."""
+
+
+# Fields whose "missing" value means "never happened" (inf) rather than "undefined" (nan).
+_INF_FIELDS = frozenset(
+    {
+        "min_ttc",
+        "min_ttc_vehicle",
+        "min_separation",
+        "min_vehicle_separation",
+        "min_pet_pedestrian_first",
+        "min_pet_ego_first",
+    }
+)
+
+
+@dataclass(frozen=True)
+class EpisodeResult:
+    """Per-episode safety and efficiency figures. Times in s, distances in m, speeds in m/s, accel. m/s²."""
+
+    scenario: str
+    """Scenario name."""
+    duration: float
+    """Simulation time of the last update."""
+    steps: int
+    """Number of updates."""
+    collision: bool
+    """Any ego collision (pedestrian or vehicle)."""
+    pedestrian_collisions: int
+    """Number of ego–pedestrian contacts."""
+    vehicle_collisions: int
+    """Number of ego–vehicle contacts."""
+    compliant_pedestrian_collisions: int
+    """Contacts with pedestrians crossing legally (`CollisionEvent.compliant`)."""
+    noncompliant_pedestrian_collisions: int
+    """Contacts with jaywalking / red-light pedestrians."""
+    max_impact_speed: float
+    """Largest ego–pedestrian impact speed; nan without pedestrian collision."""
+    min_ttc: float
+    """Minimum ego–pedestrian TTC (box–disc, constant velocity); inf if never on a collision course."""
+    min_ttc_vehicle: float
+    """Minimum following TTC to a vehicle ahead in the ego's lane; inf if never closing."""
+    serious_conflict_time: float
+    """Time with pedestrian TTC < `serious_ttc`."""
+    encounter_time: float
+    """Time with pedestrian TTC < `encounter_ttc`."""
+    min_separation: float
+    """Minimum ego–pedestrian footprint distance (negative = overlap); inf without pedestrians."""
+    min_vehicle_separation: float
+    """Minimum ego–vehicle footprint distance; inf without vehicles."""
+    clearance_violation_time: float
+    """Time with some pedestrian closer than `clearance` to the ego footprint."""
+    max_drac_crossing: float
+    """Largest crossing DRAC of the ego against pedestrians occupying the conflict area first; 0 if none."""
+    max_drac_following: float
+    """Largest following DRAC against vehicles ahead in the ego's lane; 0 if none."""
+    min_pet_pedestrian_first: float
+    """Smallest PET with the pedestrian leaving the conflict area before the ego enters; inf if none."""
+    min_pet_ego_first: float
+    """Smallest PET with the ego leaving before a pedestrian enters; inf if none."""
+    pets_pedestrian_first: tuple[float, ...]
+    """All pedestrian-first PET values (one per pedestrian and ego entry)."""
+    pets_ego_first: tuple[float, ...]
+    """All ego-first PET values (one per pedestrian entry after the ego left)."""
+    simultaneous_occupancies: int
+    """Entries into the conflict area while the other party was inside (PET undefined: a conflict)."""
+    hard_braking_steps: int
+    """Steps with acceleration ≤ −`hard_braking_threshold`."""
+    hard_braking_events: int
+    """Separate hard-braking manoeuvres (runs of consecutive hard-braking steps)."""
+    comfort_violation_steps: int
+    """Steps with acceleration ≤ −`comfort_deceleration`."""
+    max_deceleration: float
+    """Largest deceleration (positive number, SUMO maxBR); 0 if the ego never braked."""
+    yield_obligations: int
+    """Pedestrians the ego had to give way to (see `EpisodeMetrics`)."""
+    yield_compliant: int
+    """Obligations met: the ego did not enter the conflict area before the pedestrian cleared its half."""
+    yield_violations: int
+    """Obligations broken."""
+    yield_offers_declined: int
+    """Compliant obligations ended because a waiting pedestrian did not cross although the ego had stopped."""
+    passed_crossing: bool
+    """The ego reached the delay target (crossing far edge + `delay_margin`)."""
+    delay: float
+    """Time to reach the delay target minus free-flow time at the speed limit; nan if not reached."""
+    time_to_pass: float
+    """From the ego front `pass_trigger_distance` before the crossing until its rear clears it; nan if not."""
+    distance_travelled: float
+    """Ego progress along x since the start."""
+    pedestrian_wait_times: tuple[float, ...]
+    """Kerb arrival → stepping off, for each pedestrian who stepped off (0 if it did not stop)."""
+    censored_waits: int
+    """Pedestrians still waiting at the end of the episode (not in `pedestrian_wait_times`)."""
+
+    @property
+    def yield_compliance(self) -> float:
+        """Compliant / obligations; nan without obligations."""
+        return self.yield_compliant / self.yield_obligations if self.yield_obligations else math.nan
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-safe dict: tuples become lists, inf and nan become None (see the module docstring)."""
+        return {f.name: json_safe(getattr(self, f.name)) for f in fields(self)}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> EpisodeResult:
+        """Inverse of `as_dict`: None becomes inf for the min-TTC/PET/separation fields, nan otherwise."""
+        kwargs: dict[str, Any] = {}
+        for f in fields(cls):
+            if f.name not in data:
+                raise ValueError(f"EpisodeResult.from_dict: missing field {f.name!r}")
+            value = data[f.name]
+            if value is None:
+                value = _INF if f.name in _INF_FIELDS else math.nan
+            elif isinstance(value, list):
+                value = tuple(math.nan if x is None else float(x) for x in value)
+            kwargs[f.name] = value
+        return cls(**kwargs)
+
+
+def json_safe(value: Any) -> Any:
+    """Recursively convert to JSON-safe Python types: non-finite floats → None, tuples/arrays → lists."""
+    if isinstance(value, bool | str) or value is None:
+        return value
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, int | np.integer):
+        return int(value)
+    if isinstance(value, float | np.floating):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, Mapping):
+        return {str(k): json_safe(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return [json_safe(x) for x in value.tolist()]
+    if isinstance(value, Sequence):
+        return [json_safe(x) for x in value]
+    return value

@@ -1,0 +1,284 @@
+"""The files of a run, each written atomically into the output folder.
+
+- ``results.json``: the settings, a summary per policy, per (scenario, policy) and overall, and every
+  episode's metrics (`crossing_env.safety.EpisodeResult.as_dict`);
+- ``episodes.csv`` (one row per episode) and ``summary.csv`` (one row per policy and "overall");
+- ``safety_vs_efficiency.png`` and ``min_ttc.png`` (matplotlib, Agg backend);
+- ``worst/*.json``: episode logs of the worst episodes (collisions first, then lowest min TTC; the five
+  worst overall plus the worst of every other policy) that ``crossing-replay episode`` re-runs.
+
+Records arrive sorted by (scenario, policy, episode) and the JSON holds no timing or worker information,
+so the files are identical whatever ``--workers`` or ``--backend``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from crossing_common.files import write_bytes_atomic
+from crossing_env.safety import json_safe
+from crossing_eval.tasks import EpisodeRecord
+from crossing_replay.episode_log import save_episode_log
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+WORST_EPISODES = 5
+"""Number of worst episodes overall saved as replayable logs (plus the worst of every other policy)."""
+
+CSV_EPISODE_FIELDS = (
+    "scenario",
+    "policy",
+    "episode",
+    "seed",
+    "collision",
+    "pedestrian_collisions",
+    "vehicle_collisions",
+    "max_impact_speed",
+    "min_ttc",
+    "min_separation",
+    "min_pet_pedestrian_first",
+    "min_pet_ego_first",
+    "max_drac_crossing",
+    "hard_braking_events",
+    "max_deceleration",
+    "yield_obligations",
+    "yield_compliant",
+    "yield_violations",
+    "passed_crossing",
+    "delay",
+    "time_to_pass",
+    "distance_travelled",
+    "duration",
+)
+"""Columns of ``episodes.csv``: the task's four, then `EpisodeResult` fields."""
+
+
+# ---------------------------------------------------------------------------------------------------------
+# JSON and CSV
+# ---------------------------------------------------------------------------------------------------------
+
+
+def _csv_value(x: Any) -> Any:
+    if isinstance(x, float) and not math.isfinite(x):
+        return "nan" if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    if x is None:
+        return ""
+    return x
+
+
+def _csv_text(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(header)
+    writer.writerows(rows)
+    return buf.getvalue()
+
+
+def _write_results_json(
+    records: Sequence[EpisodeRecord], summary: dict[str, Any], settings: dict[str, Any], out: Path
+) -> None:
+    doc = {
+        "settings": settings,
+        "summary": json_safe(summary),
+        "episodes": [
+            {
+                "scenario": r.task.scenario,
+                "policy": r.task.policy,
+                "episode": r.task.episode,
+                "seed": r.task.seed,
+                "predictors": r.predictors,
+                "metrics": r.result,
+            }
+            for r in records
+        ],
+    }
+    write_bytes_atomic(
+        out / "results.json", (json.dumps(doc, indent=1, sort_keys=True) + "\n").encode("utf-8")
+    )
+
+
+def _write_episodes_csv(records: Sequence[EpisodeRecord], out: Path) -> None:
+    rows = [
+        [
+            r.task.scenario,
+            r.task.policy,
+            r.task.episode,
+            r.task.seed,
+            *(_csv_value(r.result[f]) for f in CSV_EPISODE_FIELDS[4:]),
+        ]
+        for r in records
+    ]
+    write_bytes_atomic(out / "episodes.csv", _csv_text(CSV_EPISODE_FIELDS, rows).encode("utf-8"))
+
+
+def _write_summary_csv(summary: dict[str, Any], policies: Sequence[str], out: Path) -> None:
+    """One row per policy and "overall"; the scalar aggregates plus the collision-rate interval."""
+    keys = [k for k in summary["overall"] if not isinstance(summary["overall"][k], tuple | list)]
+    rows = []
+    for name, agg in [
+        *((p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]),
+        ("overall", summary["overall"]),
+    ]:
+        lo, hi = agg["collision_ci95"]
+        rows.append([name, *(_csv_value(agg[k]) for k in keys), _csv_value(lo), _csv_value(hi)])
+    header = ["policy", *keys, "collision_ci95_low", "collision_ci95_high"]
+    write_bytes_atomic(out / "summary.csv", _csv_text(header, rows).encode("utf-8"))
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Plots
+# ---------------------------------------------------------------------------------------------------------
+
+
+def _plot(
+    records: Sequence[EpisodeRecord], summary: dict[str, Any], policies: Sequence[str], out: Path
+) -> None:
+    """Safety-vs-efficiency scatter and min-TTC distributions as PNG (written atomically)."""
+    # Imported here, not at the top: the Agg backend is selected only when plotting, never as a side
+    # effect of importing this module.
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    names = [p for p in policies if p in summary["per_policy"]]
+    plots: list[tuple[str, Callable[[Axes], None]]] = [
+        ("safety_vs_efficiency.png", lambda ax: _draw_safety_vs_efficiency(ax, summary, names)),
+        ("min_ttc.png", lambda ax: _draw_min_ttc(ax, records, names)),
+    ]
+    for file_name, draw in plots:
+        fig, ax = plt.subplots(figsize=(6.5, 4.5))
+        draw(ax)
+        fig.tight_layout()
+        _save_fig(fig, out / file_name)
+        plt.close(fig)
+
+
+def _draw_safety_vs_efficiency(ax: Axes, summary: dict[str, Any], names: Sequence[str]) -> None:
+    for name in names:
+        agg = summary["per_policy"][name]
+        lo, hi = agg["collision_ci95"]
+        rate = agg["collision_rate"]
+        delay = agg["mean_delay"]
+        x = 0.0 if delay is None or math.isnan(delay) else delay
+        ax.errorbar(x, rate, yerr=[[rate - lo], [hi - rate]], fmt="o", capsize=4, label=name)
+        ax.annotate(name, (x, rate), textcoords="offset points", xytext=(6, 6), fontsize=8)
+    ax.set_xlabel("mean delay at the crossing (s)  → less efficient")
+    ax.set_ylabel("collision rate (95% Wilson CI)  → less safe")
+    ax.set_title("Safety vs efficiency per policy")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+
+
+def _draw_min_ttc(ax: Axes, records: Sequence[EpisodeRecord], names: Sequence[str]) -> None:
+    cap = 10.0
+    bins = np.linspace(0.0, cap, 21)
+    for name in names:
+        vals = np.array(
+            [
+                r.result["min_ttc"] if r.result["min_ttc"] is not None else np.inf
+                for r in records
+                if r.task.policy == name
+            ],
+            dtype=np.float64,
+        )
+        ax.hist(np.minimum(vals, cap), bins=bins, histtype="step", linewidth=1.5, label=name)
+    ax.axvline(1.5, color="red", linestyle="--", linewidth=1, label="serious conflict (1.5 s)")
+    ax.set_xlabel(f"episode minimum TTC to a pedestrian (s; ≥ {cap:g} and 'never' in the last bin)")
+    ax.set_ylabel("episodes")
+    ax.set_title("Minimum TTC distribution per policy")
+    ax.legend(fontsize=8)
+
+
+def _save_fig(fig: Figure, path: Path) -> None:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110)
+    write_bytes_atomic(path, buf.getvalue())
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Worst episodes
+# ---------------------------------------------------------------------------------------------------------
+
+
+def worst_records(records: Sequence[EpisodeRecord], n: int = WORST_EPISODES) -> list[EpisodeRecord]:
+    """The `n` worst episodes overall, then the worst of each policy not yet included.
+
+    Ranking: collisions first (highest impact speed first), then the lowest min TTC; ties by key.
+    Episodes with neither a collision nor a finite TTC are never "worst".
+    """
+
+    def badness(r: EpisodeRecord) -> tuple[int, float, float, tuple[str, str, int]]:
+        res = r.result
+        impact = res["max_impact_speed"] if res["max_impact_speed"] is not None else 0.0
+        ttc = res["min_ttc"] if res["min_ttc"] is not None else math.inf
+        return (0 if res["collision"] else 1, -impact, ttc, r.key)
+
+    ranked = [
+        r for r in sorted(records, key=badness) if r.result["collision"] or r.result["min_ttc"] is not None
+    ]
+    chosen = ranked[:n]
+    for rec in ranked:
+        if all(c.task.policy != rec.task.policy for c in chosen):
+            chosen.append(rec)
+    return chosen
+
+
+def save_worst(records: Sequence[EpisodeRecord], out: Path, n: int = WORST_EPISODES) -> list[str]:
+    """Write replayable logs of the worst episodes into ``out/worst``; returns the file names."""
+    folder = out / "worst"
+    names = []
+    for rank, rec in enumerate(worst_records(records, n)):
+        t = rec.task
+        name = f"{rank:02d}_{Path(t.scenario).stem}_{t.policy}_ep{t.episode}.json"
+        folder.mkdir(parents=True, exist_ok=True)
+        save_episode_log(
+            folder / name,
+            scenario=t.scenario,
+            seed=t.seed,
+            actions=np.asarray(rec.actions, dtype=np.float32),
+            policy=t.policy,
+            # Only the wrappers the episode really ran with, so that the replay rebuilds the same env.
+            predictor=t.predictor if f"trajectory:{t.predictor}" in rec.predictors else None,
+            intention=t.intention if f"intention:{t.intention}" in rec.predictors else None,
+            final_ground_truth=rec.final_ground_truth,
+            metadata={
+                "rank": rank,
+                "episode": t.episode,
+                "metrics": rec.result,
+                "predictors": rec.predictors,
+            },
+        )
+        names.append(name)
+    return names
+
+
+def write_outputs(
+    records: Sequence[EpisodeRecord], summary: dict[str, Any], settings: dict[str, Any], out: Path
+) -> list[str]:
+    """JSON, CSVs, plots and worst-episode logs; every file written atomically. Returns the file names."""
+    out.mkdir(parents=True, exist_ok=True)
+    policies = settings["policies"]
+    _write_results_json(records, summary, settings, out)
+    _write_episodes_csv(records, out)
+    _write_summary_csv(summary, policies, out)
+    _plot(records, summary, policies, out)
+    worst = save_worst(records, out)
+    return [
+        "results.json",
+        "episodes.csv",
+        "summary.csv",
+        "safety_vs_efficiency.png",
+        "min_ttc.png",
+        *(f"worst/{w}" for w in worst),
+    ]

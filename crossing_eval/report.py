@@ -1,0 +1,88 @@
+"""Summaries of a run (per policy, per scenario and policy, overall) and the printed table."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+from crossing_env.safety import EpisodeResult
+from crossing_eval.statistics import aggregate
+from crossing_eval.tasks import EpisodeRecord
+
+TABLE_COLUMNS = (
+    ("policy", "policy"),
+    ("n", "episodes"),
+    ("collision rate [95% CI]", None),
+    ("minTTC p5/p50 s", None),
+    ("PET p5 s", "pet_pedestrian_first_p5"),
+    ("DRAC mean", "drac_crossing_mean"),
+    ("hard brakes/ep", "hard_brakes_per_episode"),
+    ("yield compl. (n)", None),
+    ("mean delay s", "mean_delay"),
+    ("pass rate", "pass_rate"),
+)
+"""Table columns: (header, `aggregate` key, or None where the cell combines several keys)."""
+
+
+def summarise(records: Sequence[EpisodeRecord]) -> dict[str, Any]:
+    """Per policy, per (scenario, policy) and overall aggregates (`crossing_eval.statistics.aggregate`)."""
+    results = [EpisodeResult.from_dict(r.result) for r in records]
+    by_policy: dict[str, list[Any]] = {}
+    by_pair: dict[str, list[Any]] = {}
+    for rec, res in zip(records, results, strict=True):
+        by_policy.setdefault(rec.task.policy, []).append(res)
+        by_pair.setdefault(f"{rec.task.scenario}/{rec.task.policy}", []).append(res)
+    return {
+        "per_policy": {k: aggregate(v) for k, v in by_policy.items()},
+        "per_scenario_policy": {k: aggregate(v) for k, v in sorted(by_pair.items())},
+        "overall": aggregate(results),
+    }
+
+
+def _fmt(x: Any, digits: int = 2) -> str:
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "-"
+    if isinstance(x, float) and math.isinf(x):
+        return "inf"
+    if isinstance(x, float):
+        return f"{x:.{digits}f}"
+    return str(x)
+
+
+def _row(name: str, agg: dict[str, Any]) -> list[str]:
+    """The cells of one table row, in `TABLE_COLUMNS` order."""
+    lo, hi = agg["collision_ci95"]
+    comp = agg["yield_compliance"]
+    return [
+        name,
+        str(agg["episodes"]),
+        f"{agg['collision_rate']:.3f} [{lo:.3f}, {hi:.3f}]",
+        f"{_fmt(agg['min_ttc_p5'])}/{_fmt(agg['min_ttc_p50'])}",
+        _fmt(agg["pet_pedestrian_first_p5"]),
+        _fmt(agg["drac_crossing_mean"]),
+        _fmt(agg["hard_brakes_per_episode"]),
+        f"{_fmt(comp, 3)} ({agg['yield_obligations']})",
+        _fmt(agg["mean_delay"]),
+        _fmt(agg["pass_rate"]),
+    ]
+
+
+def format_table(summary: dict[str, Any], policies: Sequence[str]) -> str:
+    """Fixed-width text table: one row per policy plus 'overall'."""
+    rows = [[c for c, _ in TABLE_COLUMNS]]
+    entries = [(p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]]
+    entries.append(("overall", summary["overall"]))
+    rows.extend(_row(name, agg) for name, agg in entries)
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    lines = []
+    for i, row in enumerate(rows):
+        lines.append(
+            "  ".join(
+                cell.ljust(w) if j == 0 else cell.rjust(w)
+                for j, (cell, w) in enumerate(zip(row, widths, strict=True))
+            )
+        )
+        if i == 0:
+            lines.append("  ".join("-" * w for w in widths))
+    return "\n".join(lines)

@@ -1,0 +1,126 @@
+"""Aggregation of per-episode results across episodes: the figures of the evaluation table.
+
+The per-episode accumulator (`crossing_env.safety.EpisodeMetrics`) belongs to the env; summarising
+many episodes (confidence intervals, percentiles of episode minima) is the evaluator's job.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from crossing_env.safety import EpisodeResult, MetricsConfig
+
+__all__ = ["aggregate", "finite_percentiles", "wilson_interval"]
+
+
+def wilson_interval(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
+    """Wilson score interval for a binomial proportion (95% for z = 1.96).
+
+    Preferred over the normal approximation because it stays inside [0, 1] and is sensible at 0 or n
+    successes, the usual case for collision rates. Returns (0, 1) for n = 0 (nothing is known).
+    """
+    if n < 0 or successes < 0 or successes > n:
+        raise ValueError(f"wilson_interval: need 0 <= successes <= n, got successes={successes}, n={n}")
+    if n == 0:
+        return 0.0, 1.0
+    p = successes / n
+    z2 = z * z
+    denom = 1.0 + z2 / n
+    centre = (p + z2 / (2 * n)) / denom
+    half = z * math.sqrt(p * (1.0 - p) / n + z2 / (4 * n * n)) / denom
+    return max(0.0, centre - half), min(1.0, centre + half)
+
+
+def finite_percentiles(values: ArrayLike, qs: Sequence[float]) -> list[float]:
+    """Percentiles (0–100) of the finite values only (inf = "never" is ignored); nan if none is finite."""
+    arr = np.asarray(values, dtype=np.float64).ravel()
+    arr = arr[np.isfinite(arr)]
+    if arr.size == 0:
+        return [math.nan for _ in qs]
+    return [float(x) for x in np.percentile(arr, list(qs))]
+
+
+def _mean(values: Sequence[float] | np.ndarray) -> float:
+    arr = np.asarray(values, dtype=np.float64)
+    arr = arr[~np.isnan(arr)]
+    return float(arr.mean()) if arr.size else math.nan
+
+
+def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = None) -> dict[str, Any]:
+    """Summarise episodes for the evaluation table.
+
+    Keys (floats may be nan when undefined; pass through `json_safe` before writing JSON):
+    episodes; collision_rate and collision_ci95 (any collision, Wilson); pedestrian_collision_rate and
+    pedestrian_collision_ci95; compliant/noncompliant_pedestrian_collisions; mean_impact_speed;
+    min_ttc_p5/p50 (episode minima, inf ignored), min_ttc_finite_fraction (episodes with a finite minimum
+    TTC, to read the percentiles against) and serious_conflict_rate (episodes with min TTC <
+    `serious_ttc`); min_separation_p5/p50; pet_pedestrian_first_p5/p50, pet_ego_first_p5/p50 and
+    critical_pet_rate (episodes with a PET < `critical_pet`); simultaneous_occupancies; drac_crossing_mean /
+    _max and drac_following_max; hard_brakes_per_episode (events), comfort_violations_per_episode (steps),
+    max_deceleration_mean; yield_obligations, yield_compliance (= compliant / obligations) and
+    yield_compliance_ci95; pass_rate, mean_delay and mean_time_to_pass (episodes that passed);
+    mean_pedestrian_wait; mean_distance.
+    """
+    cfg = config if config is not None else MetricsConfig()
+    n = len(results)
+    if n == 0:
+        raise ValueError("aggregate: no episode results given")
+
+    def col(name: str) -> np.ndarray:
+        return np.array([getattr(r, name) for r in results], dtype=np.float64)
+
+    collisions = sum(r.collision for r in results)
+    ped_coll = sum(r.pedestrian_collisions > 0 for r in results)
+    min_ttc = col("min_ttc")
+    pet_p = col("min_pet_pedestrian_first")
+    pet_e = col("min_pet_ego_first")
+    obligations = sum(r.yield_obligations for r in results)
+    compliant = sum(r.yield_compliant for r in results)
+    ttc5, ttc50 = finite_percentiles(min_ttc, (5, 50))
+    sep5, sep50 = finite_percentiles(col("min_separation"), (5, 50))
+    pp5, pp50 = finite_percentiles(pet_p, (5, 50))
+    pe5, pe50 = finite_percentiles(pet_e, (5, 50))
+    passed = np.array([r.passed_crossing for r in results])
+    drac = col("max_drac_crossing")
+    waits = [w for r in results for w in r.pedestrian_wait_times]
+    return {
+        "episodes": n,
+        "collision_rate": collisions / n,
+        "collision_ci95": wilson_interval(collisions, n),
+        "pedestrian_collision_rate": ped_coll / n,
+        "pedestrian_collision_ci95": wilson_interval(ped_coll, n),
+        "compliant_pedestrian_collisions": sum(r.compliant_pedestrian_collisions for r in results),
+        "noncompliant_pedestrian_collisions": sum(r.noncompliant_pedestrian_collisions for r in results),
+        "mean_impact_speed": _mean(col("max_impact_speed")),
+        "min_ttc_p5": ttc5,
+        "min_ttc_p50": ttc50,
+        "min_ttc_finite_fraction": float(np.mean(np.isfinite(min_ttc))),
+        "serious_conflict_rate": float(np.mean(min_ttc < cfg.serious_ttc)),
+        "min_separation_p5": sep5,
+        "min_separation_p50": sep50,
+        "pet_pedestrian_first_p5": pp5,
+        "pet_pedestrian_first_p50": pp50,
+        "pet_ego_first_p5": pe5,
+        "pet_ego_first_p50": pe50,
+        "critical_pet_rate": float(np.mean(np.minimum(pet_p, pet_e) < cfg.critical_pet)),
+        "simultaneous_occupancies": sum(r.simultaneous_occupancies for r in results),
+        "drac_crossing_mean": float(drac[np.isfinite(drac)].mean()) if np.isfinite(drac).any() else math.nan,
+        "drac_crossing_max": float(drac.max()),
+        "drac_following_max": float(col("max_drac_following").max()),
+        "hard_brakes_per_episode": float(col("hard_braking_events").mean()),
+        "comfort_violations_per_episode": float(col("comfort_violation_steps").mean()),
+        "max_deceleration_mean": float(col("max_deceleration").mean()),
+        "yield_obligations": obligations,
+        "yield_compliance": compliant / obligations if obligations else math.nan,
+        "yield_compliance_ci95": wilson_interval(compliant, obligations),
+        "pass_rate": float(passed.mean()),
+        "mean_delay": _mean(col("delay")),
+        "mean_time_to_pass": _mean(col("time_to_pass")),
+        "mean_pedestrian_wait": _mean(waits),
+        "mean_distance": float(col("distance_travelled").mean()),
+    }

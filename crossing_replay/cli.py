@@ -1,0 +1,188 @@
+"""`crossing-replay`: write crossing episodes and real pedestrian scenes to rerun recordings (`.rrd`).
+
+Subcommands:
+
+* ``record --scenario NAME --policy NAME --seed N --out episode.rrd [--steps N] [--predictor M]
+  [--intention qlb|classical] [--save-log LOG.json] [--view]`` runs one episode of
+  ``crossing_env/Crossing-v0`` and logs it. Policies come from ``agents.make_policy`` when it knows the
+  name, else the built-ins ``constant`` and ``random``; a policy that reads predictions gets the best
+  available predictor wrappers unless ``--predictor`` / ``--intention`` say otherwise;
+* ``episode LOG.json --out episode.rrd`` re-runs an episode saved with `save_episode_log` (the format the
+  evaluation script writes for its worst episodes) and logs it the same way;
+* ``scene --dataset eth|hotel|univ|zara1|zara2|sdd [--file F] --out scene.rrd [--model s-cgru]`` replays a
+  real ETH/UCY or SDD recording with trajectory predictions drawn against the ground truth (constant
+  velocity, announced in the recording, when the learned model's weights are missing);
+* ``screenshot REC.rrd --time T --out shot.png`` saves a PNG of the viewer at ``sim_time = T`` without a
+  display (headless viewer; needs a Vulkan driver such as Mesa's lavapipe).
+
+``--view`` starts the native viewer shipped in the rerun-sdk wheel on the written file. Bad input exits
+with code 2 and a message naming the file, field or option; recordings are written to a temporary file
+and renamed, so a failed run leaves no partial ``.rrd``.
+
+The recordings' entities are listed in `crossing_replay.recorder`, the episode-log format in
+`crossing_replay.episode_log`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from crossing_replay.episode_log import save_episode_log
+from crossing_replay.episodes import INTENTION_WRAPPERS
+from crossing_replay.errors import ReplayError
+from crossing_replay.recorder import record_episode, replay_episode_log
+from crossing_replay.scene import DATASETS, record_scene
+from crossing_replay.viewer import open_viewer, screenshot
+
+
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from exc
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {value}")
+    return value
+
+
+def _positive_int(text: str) -> int:
+    value = _non_negative_int(text)
+    if value == 0:
+        raise argparse.ArgumentTypeError("expected a positive integer, got 0")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The `crossing-replay` argument parser."""
+    p = argparse.ArgumentParser(
+        prog="crossing-replay",
+        description="Write crossing episodes and real pedestrian scenes to rerun recordings (.rrd); "
+        "--view opens them in the rerun viewer.",
+    )
+    sub = p.add_subparsers(dest="command", required=True)
+    r = sub.add_parser("record", help="run an episode and record it")
+    r.add_argument("--scenario", required=True, help="built-in scenario name or scenario TOML path")
+    r.add_argument("--policy", default="constant", help="policy (agents.make_policy, or constant/random)")
+    r.add_argument("--seed", type=_non_negative_int, default=0, help="reset seed")
+    r.add_argument("--out", required=True, help="output .rrd")
+    r.add_argument("--steps", type=_positive_int, default=None, help="stop after this many steps")
+    r.add_argument("--predictor", default=None, help="trajectory predictor wrapper (cvm, s-cgru, path)")
+    r.add_argument("--intention", default=None, choices=sorted(INTENTION_WRAPPERS), help="intention wrapper")
+    r.add_argument("--save-log", default=None, help="also write the episode log (JSON) here")
+    r.add_argument("--view", action="store_true", help="open the recording in the rerun viewer")
+    e = sub.add_parser("episode", help="replay a saved episode log")
+    e.add_argument("log", help="episode log (.json) written by save_episode_log")
+    e.add_argument("--out", required=True, help="output .rrd")
+    e.add_argument("--view", action="store_true", help="open the recording in the rerun viewer")
+    s = sub.add_parser("scene", help="replay a real ETH/UCY or SDD scene with predictions")
+    s.add_argument("--dataset", required=True, choices=DATASETS)
+    s.add_argument("--file", default=None, help="trajectory file (path or name in the dataset's test folder)")
+    s.add_argument("--data", default=None, help="data root (default $CROSSING_DATA or <repo>/../shared/data)")
+    s.add_argument("--model", default="s-cgru", help="s-cgru, s-lstm, ... (learned), cvm or kalman")
+    s.add_argument(
+        "--weights", default=None, help="folder of <model>_<dataset>.pt (default predictors/weights)"
+    )
+    s.add_argument("--start-frame", type=_non_negative_int, default=0, help="first frame index of the slice")
+    s.add_argument("--max-frames", type=_positive_int, default=None, help="number of frames to replay")
+    s.add_argument("--out", required=True, help="output .rrd")
+    s.add_argument("--view", action="store_true", help="open the recording in the rerun viewer")
+    g = sub.add_parser("screenshot", help="PNG of the viewer showing a recording (headless, needs Vulkan)")
+    g.add_argument("rrd", help="recording (.rrd)")
+    g.add_argument("--out", required=True, help="output .png")
+    g.add_argument("--time", type=float, default=0.0, help="sim_time to show, seconds")
+    g.add_argument("--port", type=_positive_int, default=9877, help="gRPC port of the headless viewer")
+    g.add_argument("--max-kb", type=_positive_int, default=500, help="downscale until the PNG is this small")
+    return p
+
+
+def _record(args: argparse.Namespace) -> int:
+    summary = record_episode(
+        args.out,
+        args.scenario,
+        args.seed,
+        policy=args.policy,
+        max_steps=args.steps,
+        predictor=args.predictor,
+        intention=args.intention,
+    )
+    if args.save_log:
+        save_episode_log(
+            args.save_log,
+            scenario=args.scenario,
+            seed=args.seed,
+            actions=summary.actions,
+            policy=args.policy,
+            predictor=summary.predictor,
+            intention=summary.intention,
+            final_ground_truth=summary.final_ground_truth,
+        )
+    print(f"wrote {summary.out}: {summary.steps} steps, {summary.collisions} collision(s)")
+    return 0
+
+
+def _episode(args: argparse.Namespace) -> int:
+    """Replay a log; 1 (with a warning) when the replay differs from it."""
+    summary, match = replay_episode_log(args.log, args.out)
+    print(f"wrote {summary.out}: {summary.steps} steps, {summary.collisions} collision(s)")
+    if match is False:
+        print(
+            f"crossing-replay: warning: {args.log}: the replay differs from the log (episode "
+            "length vs field 'actions', or final ground truth vs field 'final_ground_truth_sha256'): "
+            "the code or the scenario changed since it was saved",
+            file=sys.stderr,
+        )
+        return 1
+    return 0
+
+
+def _scene(args: argparse.Namespace) -> int:
+    sc = record_scene(
+        args.out,
+        args.dataset,
+        args.data,
+        args.file,
+        args.model,
+        args.start_frame,
+        args.max_frames,
+        args.weights,
+    )
+    print(
+        f"wrote {sc.out}: {sc.file.name}, {sc.frames} frames, {sc.predictions} predictions, "
+        f"predictor {sc.predictor}, ADE {sc.ade:.3f} m, FDE {sc.fde:.3f} m"
+    )
+    return 0
+
+
+def _screenshot(args: argparse.Namespace) -> int:
+    shot = screenshot(args.rrd, args.out, args.time, port=args.port, max_bytes=args.max_kb * 1000)
+    print(f"wrote {shot} ({shot.stat().st_size // 1000} kB)")
+    return 0
+
+
+_COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
+    "record": _record,
+    "episode": _episode,
+    "scene": _scene,
+    "screenshot": _screenshot,
+}
+"""Subcommand → handler returning the exit status (bad input is raised, and reported by `main`)."""
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of `crossing-replay`; returns 0 on success, 2 on bad input, 1 on a replay mismatch."""
+    args = build_parser().parse_args(argv)
+    try:
+        status = _COMMANDS[args.command](args)
+    except (ReplayError, ValueError, FileNotFoundError) as exc:
+        print(f"crossing-replay: error: {exc}", file=sys.stderr)
+        return 2
+    if getattr(args, "view", False):  # `screenshot` has no --view
+        open_viewer(Path(args.out))
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())

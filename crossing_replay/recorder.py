@@ -1,0 +1,522 @@
+"""Rerun recordings (`.rrd`) of simulated crossing episodes, from a policy or from an episode log.
+
+Recordings are written to a temporary file and renamed, so a failed run leaves no partial ``.rrd``.
+
+Entities of an episode recording (world coordinates in metres; the 2D view draws +y downwards, like
+highway-env's renderer):
+
+* static ``/world/road/{surface,sidewalks,kerbs,markings,stop_lines}`` and ``/world/crossing/stripes``;
+* per frame ``/world/ego`` and ``/world/vehicles`` (oriented boxes as closed `LineStrips2D`: `Boxes2D` has no
+  rotation), ``/world/pedestrians`` (`Points2D`, id labels, colours by `PedState`), ``/world/signal``,
+  ``/world/predictions`` when the observation holds ``predicted_paths``;
+* time series ``/metrics/{ego_speed,ego_acceleration,min_distance,ttc}`` and
+  ``/intention/ped_<id>`` when the observation holds ``crossing_intention``;
+* ``/events/collisions`` and ``/events/behaviour`` (`TextLog`).
+
+Frame ``i`` is logged at ``step = i`` and ``sim_time = i·dt`` seconds; frame 0 is the state after ``reset``,
+so an episode of ``n`` steps has ``n + 1`` rows per per-frame entity.
+
+``rerun`` is imported inside the functions that log: it takes most of a second to import, which
+``crossing-replay --help`` and the episode-log readers should not pay.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from crossing_common.files import give_default_permissions
+from crossing_env import safety
+from crossing_env.road import RoadGeometry
+from crossing_env.types import GroundTruth, PedState
+from crossing_replay.episode_log import ground_truth_digest, load_episode_log
+from crossing_replay.episodes import Frame, env_for_policy, make_policy, run_episode
+from crossing_replay.errors import ReplayError
+from scenarios.config import EnvConfig, ScenarioConfig
+
+APP_ID = "crossing_env"
+
+PED_COLOURS: dict[int, tuple[int, int, int]] = {
+    PedState.INACTIVE: (128, 128, 128),
+    PedState.APPROACHING: (90, 170, 255),
+    PedState.WAITING: (255, 200, 0),
+    PedState.CROSSING: (255, 70, 50),
+    PedState.LEAVING: (90, 210, 100),
+}
+"""Pedestrian colour per `PedState`: blue approaching, amber waiting, red crossing, green leaving."""
+EGO_COLOUR = (0, 230, 255)
+VEHICLE_COLOUR = (235, 235, 235)
+PREDICTION_COLOUR = (230, 70, 230)
+
+
+@contextmanager
+def open_recording(out: str | os.PathLike[str], recording_id: str, blueprint: Any = None) -> Iterator[Any]:
+    """A `rerun.RecordingStream` writing to a temporary file that replaces `out` only on success."""
+    import rerun as rr
+
+    path = Path(out)
+    if path.suffix != ".rrd":
+        raise ReplayError(f"--out {str(path)!r}: the output must end in .rrd")
+    if not path.parent.is_dir():
+        raise ReplayError(f"--out {str(path)!r}: folder {str(path.parent)!r} does not exist")
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    rec = rr.RecordingStream(APP_ID, recording_id=recording_id)
+    rec.set_sinks(rr.FileSink(tmp), default_blueprint=blueprint)
+    try:
+        yield rec
+        rec.flush()
+        rec.disconnect()
+        give_default_permissions(tmp)
+        os.replace(tmp, path)
+    finally:
+        rec.disconnect()
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def box_corners(centres: np.ndarray, sizes: np.ndarray, headings: np.ndarray) -> np.ndarray:
+    """(N, 5, 2) closed outlines of oriented boxes: centre (N, 2), (length, width) (N, 2), heading (N,)."""
+    half = sizes[:, None, :] / 2 * np.array([[1, 1], [1, -1], [-1, -1], [-1, 1], [1, 1]], dtype=np.float64)
+    c, s = np.cos(headings)[:, None], np.sin(headings)[:, None]
+    x = half[..., 0] * c - half[..., 1] * s
+    y = half[..., 0] * s + half[..., 1] * c
+    return np.stack([x, y], axis=-1) + centres[:, None, :]
+
+
+def _dashes(x0: float, x1: float, y: float, dash: float = 3.0, gap: float = 6.0) -> np.ndarray:
+    starts = np.arange(x0, x1 - dash, dash + gap)
+    return np.stack(
+        [
+            np.stack([starts, np.full_like(starts, y)], 1),
+            np.stack([starts + dash, np.full_like(starts, y)], 1),
+        ],
+        axis=1,
+    )
+
+
+def episode_blueprint(scenario: ScenarioConfig, intention: bool = False) -> Any:
+    """Viewer layout: the road around the crossing on top, metrics and events below.
+
+    The side panels start collapsed so the road gets the room; the intention plot appears only when the
+    observation holds ``crossing_intention``.
+    """
+    import rerun.blueprint as rrb
+
+    road = scenario.road
+    x = scenario.crossing.position
+    margin = road.sidewalk_width + 1.0
+    plots: list[Any] = [rrb.TimeSeriesView(origin="/metrics", name="safety")]
+    if intention:
+        plots.append(rrb.TimeSeriesView(origin="/intention", name="crossing intention"))
+    plots.append(rrb.TextLogView(origin="/events", name="events"))
+    return rrb.Blueprint(
+        rrb.Vertical(
+            rrb.Spatial2DView(
+                origin="/world",
+                name="crossing",
+                background=(40, 44, 40),
+                visual_bounds=rrb.VisualBounds2D(
+                    x_range=[x - 35.0, x + 35.0], y_range=[-margin - 6.0, road.road_width + margin + 6.0]
+                ),
+            ),
+            rrb.Horizontal(*plots),
+            row_shares=[3, 2],
+        ),
+        rrb.BlueprintPanel(state="collapsed"),
+        rrb.SelectionPanel(state="collapsed"),
+        rrb.TimePanel(timeline="sim_time", state="collapsed"),
+    )
+
+
+class EpisodeRecorder:
+    """Logs the static road and each `Frame` of an episode to a rerun recording stream."""
+
+    def __init__(self, rec: Any, scenario: ScenarioConfig, dt: float) -> None:
+        self.rec = rec
+        self.scenario = scenario
+        self.dt = dt
+        self.intention_ids: set[int] = set()
+
+    def log_static(self) -> None:
+        """Road surface, sidewalks, kerbs, lane markings, stop lines and the crossing's stripes."""
+        import rerun as rr
+
+        sc = self.scenario
+        geo = RoadGeometry(sc.road, sc.crossing)
+        self._log_road(geo)
+        self._log_markings()
+        if geo.has_crossing:
+            self._log_crossing(geo)
+        # Text logs are shown only on a timeline (a static entry is hidden): log this one at frame 0.
+        self.rec.set_time("step", sequence=0)
+        self.rec.set_time("sim_time", duration=0.0)
+        self.rec.log("events/info", rr.TextLog(f"scenario {sc.name}: {sc.description}", level="INFO"))
+
+    def _log_road(self, geo: RoadGeometry) -> None:
+        """Road surface, sidewalks and kerbs (static)."""
+        import rerun as rr
+
+        road, length, w = self.scenario.road, self.scenario.road.length, self.scenario.road.road_width
+        log = self.rec.log
+        log(
+            "world/road/surface",
+            rr.LineStrips2D(
+                [[[0.0, w / 2], [length, w / 2]]], radii=w / 2, colors=(70, 70, 75), draw_order=0.0
+            ),
+            static=True,
+        )
+        sw = road.sidewalk_width
+        walks = [[[0.0, -sw / 2], [length, -sw / 2]], [[0.0, w + sw / 2], [length, w + sw / 2]]]
+        log(
+            "world/road/sidewalks",
+            rr.LineStrips2D(
+                walks,
+                radii=sw / 2,
+                colors=(125, 120, 110),
+                draw_order=1.0,
+            ),
+            static=True,
+        )
+        log(
+            "world/road/kerbs",
+            rr.LineStrips2D(
+                [
+                    [[0.0, geo.kerb_south], [length, geo.kerb_south]],
+                    [[0.0, geo.kerb_north], [length, geo.kerb_north]],
+                ],
+                radii=0.12,
+                colors=(210, 210, 200),
+                draw_order=2.0,
+            ),
+            static=True,
+        )
+
+    def _log_markings(self) -> None:
+        """Lane markings (static): a solid centre line between the two directions, dashes elsewhere."""
+        import rerun as rr
+
+        road, length = self.scenario.road, self.scenario.road.length
+        n_fwd, lw = road.num_forward_lanes, road.lane_width
+        strips: list[np.ndarray] = []
+        colours: list[tuple[int, int, int]] = []
+        for i in range(1, road.num_lanes):
+            y = i * lw
+            if i == n_fwd and 0 < n_fwd < road.num_lanes:  # centre line between the two directions
+                strips.append(np.array([[0.0, y], [length, y]]))
+                colours.append((240, 200, 0))
+            else:
+                for d in _dashes(0.0, length, y):
+                    strips.append(d)
+                    colours.append((230, 230, 230))
+        if strips:
+            self.rec.log(
+                "world/road/markings",
+                rr.LineStrips2D(strips, radii=0.08, colors=colours, draw_order=2.0),
+                static=True,
+            )
+
+    def _log_crossing(self, geo: RoadGeometry) -> None:
+        """The crossing's stripes and the stop line of every lane (static)."""
+        import rerun as rr
+
+        road = self.scenario.road
+        rect = geo.crossing_rect
+        ys = np.arange(rect.y_min + 0.5, rect.y_max - 0.25, 1.0)
+        stripes = [[[rect.x_min, y], [rect.x_max, y]] for y in ys]
+        self.rec.log(
+            "world/crossing/stripes",
+            rr.LineStrips2D(stripes, radii=0.25, colors=(245, 245, 245), draw_order=3.0),
+            static=True,
+        )
+        stops = []
+        for lane in range(road.num_lanes):
+            direction = geo.lane_direction[lane]
+            x = geo.stop_line_x(direction)
+            lo, hi = geo.lane_bounds(lane)
+            stops.append([[x, lo + 0.1], [x, hi - 0.1]])
+        self.rec.log(
+            "world/road/stop_lines",
+            rr.LineStrips2D(stops, radii=0.15, colors=(245, 245, 245), draw_order=3.0),
+            static=True,
+        )
+
+    def _safety(self, gt: GroundTruth) -> tuple[float, float]:
+        """(minimum ego–pedestrian separation, minimum ego–pedestrian TTC); inf without pedestrians."""
+        if gt.pedestrian_ids.size == 0:
+            return np.inf, np.inf
+        length, width = gt.ego_size
+        sep = safety.box_circle_separation(
+            gt.ego_position, length, width, gt.pedestrian_positions, gt.pedestrian_radii
+        )
+        ttc = safety.box_circle_ttc(
+            gt.ego_position,
+            gt.ego_velocity,
+            length,
+            width,
+            gt.pedestrian_positions,
+            gt.pedestrian_velocities,
+            gt.pedestrian_radii,
+        )
+        return float(np.min(sep)), float(np.min(ttc))
+
+    def log_frame(self, frame: Frame) -> None:
+        """Log one frame at ``step = frame.step`` and ``sim_time = gt.time``."""
+        gt = frame.ground_truth
+        self.rec.set_time("step", sequence=frame.step)
+        self.rec.set_time("sim_time", duration=float(gt.time))
+        self._log_vehicles(gt)
+        self._log_pedestrians(gt)
+        self._log_signal(gt)
+        self._log_predictions(frame)
+        self._log_metrics(gt)
+        self._log_events(gt)
+
+    def _log_vehicles(self, gt: GroundTruth) -> None:
+        """Ego and other vehicles as oriented box outlines."""
+        import rerun as rr
+
+        ego = box_corners(gt.ego_position[None], np.asarray([gt.ego_size]), np.zeros(1))
+        self.rec.log(
+            "world/ego", rr.LineStrips2D(ego, radii=0.12, colors=EGO_COLOUR, labels=["ego"], draw_order=10.0)
+        )
+        heading = np.where(gt.vehicle_velocities[:, 0] < 0, np.pi, 0.0)
+        cars = box_corners(gt.vehicle_positions, gt.vehicle_sizes, heading)
+        self.rec.log(
+            "world/vehicles",
+            rr.LineStrips2D(
+                cars,
+                radii=0.08,
+                colors=VEHICLE_COLOUR,
+                labels=[f"car {i}" for i in gt.vehicle_ids],
+                draw_order=9.0,
+            ),
+        )
+
+    def _log_pedestrians(self, gt: GroundTruth) -> None:
+        """Pedestrians as discs coloured by state, labelled with their ids."""
+        import rerun as rr
+
+        colours = np.array(
+            [PED_COLOURS.get(int(s), (128, 128, 128)) for s in gt.pedestrian_states], dtype=np.uint8
+        ).reshape(-1, 3)
+        self.rec.log(
+            "world/pedestrians",
+            rr.Points2D(
+                gt.pedestrian_positions,
+                radii=gt.pedestrian_radii,
+                colors=colours,
+                labels=[str(i) for i in gt.pedestrian_ids],
+                class_ids=gt.pedestrian_states.astype(np.uint16),
+                draw_order=12.0,
+            ),
+        )
+
+    def _log_signal(self, gt: GroundTruth) -> None:
+        """The pedestrian signal's colour on both kerbs, when the crossing has one."""
+        import rerun as rr
+
+        if gt.signal_pedestrian_green is None:
+            return
+        x = self.scenario.crossing.position
+        colour = (60, 230, 60) if gt.signal_pedestrian_green else (240, 40, 40)
+        self.rec.log(
+            "world/signal",
+            rr.Points2D(
+                [[x, -0.6], [x, self.scenario.road.road_width + 0.6]],
+                radii=0.45,
+                colors=colour,
+                draw_order=11.0,
+            ),
+        )
+
+    def _log_metrics(self, gt: GroundTruth) -> None:
+        """Ego speed and acceleration, and the closest separation and TTC to a pedestrian (when finite)."""
+        import rerun as rr
+
+        rec = self.rec
+        speed = float(np.hypot(*gt.ego_velocity))
+        rec.log("metrics/ego_speed", rr.Scalars(speed))
+        rec.log("metrics/ego_acceleration", rr.Scalars(gt.ego_acceleration))
+        dist, ttc = self._safety(gt)
+        if np.isfinite(dist):
+            rec.log("metrics/min_distance", rr.Scalars(dist))
+        if np.isfinite(ttc):
+            rec.log("metrics/ttc", rr.Scalars(ttc))
+
+    def _log_events(self, gt: GroundTruth) -> None:
+        """Collisions (errors) and pedestrian behaviour events (warnings for rule-breaking ones)."""
+        import rerun as rr
+
+        for c in gt.collisions:
+            self.rec.log(
+                "events/collisions",
+                rr.TextLog(
+                    f"t={c.time:.1f}s collision with {c.kind} {c.other_id} at {c.relative_speed:.1f} m/s "
+                    f"({'compliant' if c.compliant else 'non-compliant'} road user)",
+                    level="ERROR",
+                ),
+            )
+        for e in gt.events:
+            level = "WARN" if e.kind in ("jaywalk", "red_light", "run", "distracted") else "INFO"
+            self.rec.log(
+                "events/behaviour",
+                rr.TextLog(f"t={e.time:.1f}s pedestrian {e.pedestrian_id}: {e.kind}", level=level),
+            )
+
+    def _log_predictions(self, frame: Frame) -> None:
+        import rerun as rr
+
+        obs, ids, gt = frame.observation, frame.slot_ids, frame.ground_truth
+        paths = obs.get("predicted_paths")
+        if paths is not None and ids.size:
+            present = np.flatnonzero(ids[: paths.shape[0]] >= 0)
+            strips = paths[present].astype(np.float64) + gt.ego_position  # ego frame → world
+            rec_ids = ids[present]
+            rows = {int(i): k for k, i in enumerate(gt.pedestrian_ids)}
+            starts = np.array(
+                [
+                    gt.pedestrian_positions[rows[int(i)]] if int(i) in rows else s[0]
+                    for i, s in zip(rec_ids, strips, strict=True)
+                ]
+            ).reshape(-1, 2)
+            full = np.concatenate([starts[:, None], strips], axis=1) if len(strips) else strips
+            self.rec.log(
+                "world/predictions",
+                rr.LineStrips2D(
+                    full,
+                    radii=0.06,
+                    colors=PREDICTION_COLOUR,
+                    labels=[str(i) for i in rec_ids],
+                    show_labels=False,
+                    draw_order=8.0,
+                ),
+            )
+        intent = obs.get("crossing_intention")
+        if intent is not None and ids.size:
+            present = np.flatnonzero(ids[: intent.shape[0]] >= 0)
+            for k in present:
+                pid = int(ids[k])
+                self.rec.log(f"intention/ped_{pid}", rr.Scalars(float(intent[k])))
+                self.intention_ids.add(pid)
+
+
+@dataclass(frozen=True)
+class RecordSummary:
+    """What a recording run produced."""
+
+    out: Path
+    """The `.rrd` written."""
+    steps: int
+    """Number of env steps (frames − 1)."""
+    collisions: int
+    """Number of ego collisions."""
+    actions: np.ndarray
+    """(T, 1) actions taken."""
+    final_ground_truth: GroundTruth
+    """Last ground truth."""
+    ground_truths: tuple[GroundTruth, ...] = ()
+    """Every frame's ground truth, when asked for (`keep_ground_truth=True`)."""
+    predictor: str | None = None
+    """Trajectory predictor wrapper really used."""
+    intention: str | None = None
+    """Intention wrapper really used."""
+
+
+def record_episode(
+    out: str | os.PathLike[str],
+    scenario: str | os.PathLike[str] | ScenarioConfig,
+    seed: int,
+    policy: str = "constant",
+    actions: np.ndarray | None = None,
+    max_steps: int | None = None,
+    predictor: str | None = None,
+    env_config: EnvConfig | None = None,
+    keep_ground_truth: bool = False,
+    intention: str | None = None,
+) -> RecordSummary:
+    """Run one episode (with `policy`, or replaying `actions`) and write it to `out` (atomically).
+
+    A policy from ``agents`` that reads predictions gets the best available wrappers when neither
+    `predictor` nor `intention` is given (S-CGRU, else constant velocity; QLB intention if present).
+    """
+    if max_steps is not None and max_steps < 1:
+        raise ReplayError(f"--steps {max_steps}: must be at least 1")
+    if seed < 0:
+        raise ReplayError(f"--seed {seed}: must be non-negative")
+    env, predictor, intention = env_for_policy(
+        scenario, policy, predictor, intention, env_config, replaying=actions is not None
+    )
+    try:
+        base = env.unwrapped
+        pol = None if actions is not None else make_policy(policy, seed, env)
+        name = base.scenario.name
+        rid = f"{name}-{policy}-seed{seed}"
+        taken: list[np.ndarray] = []
+        gts: list[GroundTruth] = []
+        collisions = 0
+        with open_recording(
+            out, rid, episode_blueprint(base.scenario, "crossing_intention" in env.observation_space.spaces)
+        ) as rec:
+            rec.send_recording_name(f"{name} · policy {policy} · seed {seed}")
+            recorder = EpisodeRecorder(rec, base.scenario, base.config.dt)
+            recorder.log_static()
+            gt = None
+            for frame in run_episode(env, seed, pol, actions, max_steps):
+                recorder.log_frame(frame)
+                gt = frame.ground_truth
+                collisions += len(gt.collisions)
+                if keep_ground_truth:
+                    gts.append(gt)
+                if frame.action is not None:
+                    taken.append(frame.action)
+        assert gt is not None
+    finally:
+        env.close()
+    acts = np.stack(taken) if taken else np.zeros((0, 1), np.float32)
+    return RecordSummary(Path(out), len(taken), collisions, acts, gt, tuple(gts), predictor, intention)
+
+
+def replay_episode_log(
+    log_path: str | os.PathLike[str], out: str | os.PathLike[str], keep_ground_truth: bool = False
+) -> tuple[RecordSummary, bool | None]:
+    """Re-run a saved episode into `out`.
+
+    The logged actions are replayed, so the predictor wrappers only add what is drawn (predicted paths,
+    intentions); if they cannot be built here, the episode is replayed without them (with a message).
+
+    Returns:
+        The summary, and whether the replay matched the log (None: the log has no digest). A mismatch
+        (other final ground truth, or an episode that ended before the actions ran out) means that the
+        code or the scenario changed since the log was saved.
+    """
+    log = load_episode_log(log_path)
+    kwargs: dict[str, Any] = {
+        "policy": log.policy,
+        "actions": log.actions,
+        "env_config": log.env_config,
+        "keep_ground_truth": keep_ground_truth,
+    }
+    try:
+        summary = record_episode(
+            out, log.scenario, log.seed, predictor=log.predictor, intention=log.intention, **kwargs
+        )
+    except ReplayError as exc:
+        if log.predictor is None and log.intention is None:
+            raise
+        print(f"crossing-replay: {exc}; replaying without predictor wrappers", file=sys.stderr)
+        summary = record_episode(out, log.scenario, log.seed, **kwargs)
+    match = None
+    if log.final_ground_truth_sha256 is not None:
+        match = ground_truth_digest(summary.final_ground_truth) == log.final_ground_truth_sha256
+    if summary.steps != len(log.actions):
+        match = False
+    return summary, match
