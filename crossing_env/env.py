@@ -55,11 +55,33 @@ def acceleration_to_action(acceleration: np.ndarray | float, ego: EgoConfig) -> 
     return np.clip(u, -1.0, 1.0).astype(np.float32)
 
 
+def check_action(action: Any) -> float:
+    """The one real, finite number in `action` (a float, or an array of shape () or (1,)).
+
+    Strings, booleans, complex numbers and other shapes are refused rather than coerced: a silently
+    converted action hides a bug in the policy. Out-of-range values are accepted and clipped to [-1, 1]
+    (Gymnasium's convention for Box actions, as its `ClipAction` wrapper does).
+
+    Raises:
+        ValueError: for anything that is not one finite real number.
+    """
+    wanted = "one finite real number (a float or an array of shape (1,)); values outside [-1, 1] are clipped"
+    arr = np.asarray(action) if not isinstance(action, (str, bytes)) else None
+    if arr is None or arr.dtype.kind not in "iuf" or arr.shape not in ((), (1,)):
+        shape = "" if arr is None else f" (dtype {arr.dtype}, shape {arr.shape})"
+        raise ValueError(f"action must be {wanted}; got {action!r}{shape}")
+    value = float(arr.reshape(-1)[0])
+    if not np.isfinite(value):
+        raise ValueError(f"action must be {wanted}; got {action!r}")
+    return value
+
+
 class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
     """A car approaching a pedestrian crossing; the action is its normalised longitudinal acceleration.
 
     Action: shape (1,) in [−1, 1]; −1 is full braking (`EgoConfig.max_deceleration`), +1 full throttle
-    (`EgoConfig.max_acceleration`), 0 holds speed (see `action_to_acceleration`).
+    (`EgoConfig.max_acceleration`), 0 holds speed (see `action_to_acceleration`). Values outside [−1, 1]
+    are clipped; strings, complex numbers, NaN and other shapes raise `ValueError` (`check_action`).
 
     Observation: a Dict of float32 boxes (`crossing_env.observation`): ego state, K pedestrian slots
     (presence, position relative to the ego, world-frame velocity, on-crossing / waiting / on-road flags;
@@ -112,10 +134,7 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
         """Apply the ego acceleration for one `dt`."""
         if self.world is None:
             raise RuntimeError("call reset() before step()")
-        u = np.asarray(action, dtype=np.float64).reshape(-1)
-        if u.size != 1 or not np.isfinite(u[0]):
-            raise ValueError(f"action must be one finite number in [-1, 1], got {action!r}")
-        accel = float(action_to_acceleration(u[0], self.scenario.ego))
+        accel = float(action_to_acceleration(check_action(action), self.scenario.ego))
         world = self.world
         x_before = world.traffic.x[0]
         world.step(accel)
