@@ -8,6 +8,7 @@ terminated (collision, end of road) / truncated (scenario duration).
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -19,24 +20,35 @@ from gymnasium import spaces
 from crossing_env.observation import ObservationBuilder
 from crossing_env.types import CrossingObs, GroundTruth, StepReturn
 from crossing_env.world import World
-from scenarios import load_scenario, validate_scenario
+from scenarios import load_scenario, scenario_from_dict, validate_scenario
 from scenarios.config import EgoConfig, EnvConfig, ScenarioConfig
+from scenarios.overrides import apply_overrides, env_config_from_dict
 
 END_OF_ROAD_MARGIN = 10.0
 """The episode terminates when the ego's centre is this close to the end of the road (m)."""
 
 
-def resolve_scenario(scenario: str | os.PathLike[str] | ScenarioConfig | None) -> ScenarioConfig:
-    """A validated scenario config from a built-in name, a TOML path, a config object, or None (the default).
+def resolve_scenario(
+    scenario: str | os.PathLike[str] | ScenarioConfig | Mapping[str, Any] | None,
+    overrides: Mapping[str, Any] | None = None,
+) -> ScenarioConfig:
+    """A validated scenario config, then dotted-key `overrides` (`scenarios.overrides`) applied.
 
-    Config objects built in Python go through the same schema checks as files, so a bad value fails here
-    with the field's name instead of misbehaving later.
+    `scenario` is a built-in name, a TOML path, a config object, a dict shaped like a scenario file, or
+    None (the default).
+
+    Config objects and dicts built in Python go through the same schema checks as files, so a bad value
+    fails here with the field's name instead of misbehaving later.
     """
     if scenario is None or (isinstance(scenario, (str, Path)) and str(scenario) == "default"):
-        return ScenarioConfig()
-    if isinstance(scenario, ScenarioConfig):
-        return validate_scenario(scenario)
-    return load_scenario(scenario)
+        cfg = ScenarioConfig()
+    elif isinstance(scenario, ScenarioConfig):
+        cfg = validate_scenario(scenario)
+    elif isinstance(scenario, Mapping):
+        cfg = scenario_from_dict(scenario, "<scenario dict>")
+    else:
+        cfg = load_scenario(scenario)
+    return apply_overrides(cfg, overrides) if overrides else cfg
 
 
 def action_to_acceleration(action: np.ndarray | float, ego: EgoConfig) -> np.ndarray:
@@ -95,12 +107,27 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
     def __init__(
         self,
         scenario: str | os.PathLike[str] | ScenarioConfig | None = None,
-        config: EnvConfig | None = None,
+        config: EnvConfig | Mapping[str, Any] | None = None,
         render_mode: str | None = None,
+        overrides: Mapping[str, Any] | None = None,
     ) -> None:
+        """Build the env.
+
+        Args:
+            scenario: A built-in name, a TOML path, a `ScenarioConfig`, a dict shaped like a scenario file,
+                or None for the default scenario.
+            config: An `EnvConfig` or a dict of its fields, e.g. ``{"dt": 0.05}`` (validated).
+            render_mode: None, "rgb_array" or "human".
+            overrides: Dotted-key changes to the scenario, e.g. ``{"pedestrians.spawn_rate": 12.0}``.
+
+        Raises:
+            ScenarioError: for a bad scenario, override or config, naming the field, value and rule.
+        """
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode={render_mode!r}; allowed: {self.metadata['render_modes']} or None")
-        self.scenario = resolve_scenario(scenario)
+        self.scenario = resolve_scenario(scenario, overrides)
+        if isinstance(config, Mapping):
+            config = env_config_from_dict(config)
         self.config = config or EnvConfig()
         self.render_mode = render_mode
         self.action_space = spaces.Box(low=-1.0, high=1.0, shape=(1,), dtype=np.float32)
