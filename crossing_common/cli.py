@@ -38,14 +38,12 @@ class DefaultsHelpFormatter(argparse.HelpFormatter):
 
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ""
-        if (
-            "%(default)" in text
-            or "default:" in text
-            or action.default in (None, False, "", argparse.SUPPRESS)
-        ):
+        default = action.default
+        if "%(default)" in text or "default:" in text:
+            return text
+        if default is None or default is False or default is argparse.SUPPRESS or default == "":
             return text
         if action.option_strings or action.nargs in (argparse.OPTIONAL, argparse.ZERO_OR_MORE):
-            default = action.default
             shown = ",".join(map(str, default)) if isinstance(default, list | tuple) else "%(default)s"
             text += f" (default: {shown})"
         return text
