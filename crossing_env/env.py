@@ -194,8 +194,12 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
             "failing_to_yield": w.failing_to_yield if in_crossing and bool(peds_in_half.any()) else 0.0,
         }
 
-    def render(self) -> np.ndarray | None:
-        """Top-down frame: `rgb_array` returns it, `human` shows it in a window."""
+    def render(self, observation: dict[str, np.ndarray] | None = None) -> np.ndarray | None:
+        """Top-down frame: `rgb_array` returns it, `human` shows it in a window.
+
+        `observation` (as `crossing_env.render.ShowPredictions` passes it) adds the predictor wrappers'
+        predicted paths and intentions to the frame.
+        """
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode")
             return None
@@ -205,7 +209,7 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
 
         if self._renderer is None:
             self._renderer = TopDownRenderer(self.config, human=self.render_mode == "human")
-        frame = self._renderer.draw(self.world)
+        frame = self._renderer.draw(self.world, observation)
         return frame if self.render_mode == "rgb_array" else None
 
     def close(self) -> None:
