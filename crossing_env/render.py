@@ -186,7 +186,7 @@ class TopDownRenderer:
             for k in present:
                 p = float(np.clip(intent[k], 0.0, 1.0))
                 centre = self._to_px(ego[0] + float(peds[k, 1]), ego[1] + float(peds[k, 2]), cx, cy)
-                colour = (int(255 * p), 60, int(255 * (1.0 - p)))
+                colour = (int(210 + 45 * p), int(210 - 150 * p), int(210 - 210 * p))  # grey → orange
                 pg.draw.circle(s, colour, centre, MIN_PED_PX + 5, 2)
                 label = self.font.render(f"{100 * p:.0f}%", True, colour)
                 s.blit(label, (centre[0] + MIN_PED_PX + 6, centre[1] - label.get_height()))
@@ -224,6 +224,9 @@ class TopDownRenderer:
             s.blit(label, (x + 14, y))
             x += label.get_width() + 28
         label = self.font.render("predicted path", True, COLOURS["prediction"])
+        s.blit(label, (x, y))
+        x += label.get_width() + 14
+        label = self.font.render("ring: crossing intention %", True, (255, 140, 40))
         s.blit(label, (x, y))
 
     def close(self) -> None:
