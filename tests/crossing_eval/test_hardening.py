@@ -167,3 +167,13 @@ def test_compare_prints_differences_with_intervals(first_run: Path, tmp_path: Pa
     assert "1.00→0.00 -1.00" in out
     assert compare_main([str(first_run), str(tmp_path / "missing")]) == 2
     assert "results.json" in capsys.readouterr().err
+
+
+@pytest.mark.ray
+def test_ray_cli_fails_fast_on_an_unreachable_address(tmp_path: Path, capsys) -> None:
+    pytest.importorskip("ray")
+    argv = [*TINY, "--backend", "ray", "--address", "127.0.0.1:1", "--ray-timeout", "2"]
+    assert cli.main([*argv, "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "no Ray cluster reachable at '127.0.0.1:1'" in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists()
