@@ -123,3 +123,35 @@ def test_gymnasium_record_video_works(tmp_path: Path):
         env.step(np.array([0.0], np.float32))
     env.close()
     assert [p.suffix for p in (tmp_path / "videos").iterdir()] == [".mp4"]
+
+
+def test_scene_opens_on_a_populated_frame(tmp_path: Path):
+    pytest.importorskip("predictors.data")
+    from crossing_replay.scene import populated_start
+
+    lines = []
+    for f in range(20):
+        crowd = 1 if f < 7 else 4  # nearly empty at first, as ETH's first frames
+        lines += [f"{f * 10}\t{p + 1}.0\t{0.4 * f:.2f}\t{p:.2f}" for p in range(crowd)]
+    path = tmp_path / "scene.txt"
+    path.write_text("\n".join(lines) + "\n")
+    assert populated_start(path) == 7
+
+
+def test_intention_series_are_coloured_by_state(tmp_path: Path):
+    pytest.importorskip("predictors.intention")
+    from crossing_replay.recorder import PED_COLOURS
+
+    out = tmp_path / "i.rrd"
+    argv = ["record", "--scenario", "busy_zebra", "--policy", "constant", "--steps", "15"]
+    assert main([*argv, "--predictor", "none", "--intention", "classical", "--out", str(out)]) == 0
+    data = read_rrd(out)
+    colours = {
+        int(c)
+        for e, rows in data.items()
+        if e.startswith("/intention/")
+        for r in rows
+        for c in (r.get("SeriesLines:colors") or [])
+    }
+    packed = {(r << 24) | (g << 16) | (b << 8) | 255 for r, g, b in PED_COLOURS.values()}
+    assert colours and colours <= packed
