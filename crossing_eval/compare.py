@@ -79,17 +79,27 @@ def _rate_cell(a: list[bool], b: list[bool]) -> str:
     return f"{sum(a) / len(a):.2f}→{sum(b) / len(b):.2f} {diff:+.2f} [{lo:+.2f}, {hi:+.2f}]"
 
 
-def _mean_cell(a: list[float], b: list[float]) -> str:
+def _mean_cell(a: list[float], b: list[float], paired: bool) -> str:
+    """Means A→B, difference, and its 95% interval: paired t when the episodes share seeds, else Welch t."""
     from scipy import stats
 
     ma, mb = float(np.mean(a)), float(np.mean(b))
     text = f"{ma:.2f}→{mb:.2f} {mb - ma:+.2f}"
+    diff = np.asarray(b) - np.asarray(a) if paired else None
+    if diff is not None and np.ptp(diff) == 0:
+        return text + f" [{diff[0]:+.2f}, {diff[0]:+.2f}]"  # every pair moved by the same amount
     if len(a) >= 2 and len(b) >= 2 and (np.ptp(a) > 0 or np.ptp(b) > 0):
-        ci = stats.ttest_ind(b, a, equal_var=False).confidence_interval(0.95)
-        text += f" [{ci.low:+.2f}, {ci.high:+.2f}]"
-    else:
-        text += " [-]"
-    return text
+        test = stats.ttest_rel(b, a) if paired else stats.ttest_ind(b, a, equal_var=False)
+        ci = test.confidence_interval(0.95)
+        return text + f" [{ci.low:+.2f}, {ci.high:+.2f}]"
+    return text + " [-]"
+
+
+def _paired(a: list[dict[str, Any]], b: list[dict[str, Any]]) -> bool:
+    """Whether both runs hold the same episodes (same seeds, same order): a paired comparison."""
+    return [(e["scenario"], e["episode"], e["seed"]) for e in a] == [
+        (e["scenario"], e["episode"], e["seed"]) for e in b
+    ]
 
 
 def compare(doc_a: dict[str, Any], doc_b: dict[str, Any]) -> str:
@@ -111,19 +121,25 @@ def compare(doc_a: dict[str, Any], doc_b: dict[str, Any]) -> str:
                     [bool(e["metrics"]["passed_crossing"]) for e in b],
                 ),
                 _mean_cell(
-                    [_censored(e, ha[e["scenario"]]) for e in a], [_censored(e, hb[e["scenario"]]) for e in b]
+                    [_censored(e, ha[e["scenario"]]) for e in a],
+                    [_censored(e, hb[e["scenario"]]) for e in b],
+                    _paired(a, b),
                 ),
             ]
         )
     widths = [max(len(r[i]) for r in rows) for i in range(len(header))]
     lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
     lines.insert(1, "  ".join("-" * w for w in widths))
-    only = sorted(set(ga) ^ set(gb))
-    if only:
-        lines.append("")
-        lines.append("in one run only: " + ", ".join(f"{s}/{p}" for s, p in only))
+    for name, mine, other in (("A", ga, gb), ("B", gb, ga)):
+        only = {p for s, p in set(mine) - set(other)}
+        if only:
+            lines.append("")
+            lines.append(f"policies only in run {name} (not compared): {', '.join(sorted(only))}")
     lines.append("")
-    lines.append("cells: A→B, difference B−A, 95% CI (rates: Newcombe; delay: Welch t)")
+    lines.append(
+        "cells: A→B, difference B−A, 95% CI (rates: Newcombe; delay: paired t when both runs ran the same"
+        " seeds, else Welch t)"
+    )
     return "\n".join(lines)
 
 
