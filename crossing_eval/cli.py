@@ -239,6 +239,11 @@ def _run(args: argparse.Namespace, labels: dict[str, str], staged: StagedFolder)
         )
     except (ScenarioError, EpisodeFailed, RayConnectionError) as exc:
         return _fail(str(exc))
+    except ValueError as exc:
+        # predictors.checkpoints.CheckpointError (a ValueError; imported lazily with torch): bad weights.
+        if type(exc).__name__ != "CheckpointError":
+            raise
+        return _fail(str(exc))
     wall = time.perf_counter() - t0
     summary = summarise(records)
     settings = _settings(args, records)

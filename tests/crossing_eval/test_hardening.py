@@ -177,3 +177,20 @@ def test_ray_cli_fails_fast_on_an_unreachable_address(tmp_path: Path, capsys) ->
     err = capsys.readouterr().err
     assert "no Ray cluster reachable at '127.0.0.1:1'" in err and "Traceback" not in err
     assert not (tmp_path / "o").exists()
+
+
+def test_corrupt_predictor_weights_stop_the_run(tmp_path: Path, capsys, monkeypatch) -> None:
+    from predictors import checkpoints
+
+    folder = tmp_path / "weights"
+    folder.mkdir()
+    (folder / "s-cgru_all.pt").write_bytes(b"tampered")
+    (folder / "manifest.json").write_text('{"s-cgru_all.pt": "0"}')
+    monkeypatch.setattr(checkpoints, "SHIPPED_DIR", folder.resolve())
+    monkeypatch.setattr(checkpoints, "MANIFEST", folder / "manifest.json")
+    monkeypatch.setattr("predictors.trajectory_wrapper.WEIGHTS_DIR", folder)
+    argv = [*TINY, "--policies", "yielding", "--predictor", "s-cgru", "--out", str(tmp_path / "o")]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert "does not match the manifest" in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists()
