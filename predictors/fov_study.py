@@ -66,7 +66,8 @@ def run_one(
 def to_markdown(res: dict[str, object]) -> str:
     """One row per scene: mean val ADE ± 95 % half-width per angle, the best angle, the seed's angle."""
     runs: dict[str, dict[str, list[dict]]] = res["runs"]  # type: ignore[assignment]
-    fovs = [float(f) for f in res["fovs"]]  # type: ignore[union-attr]
+    listed = {float(f) for f in res["fovs"]}  # type: ignore[union-attr]
+    fovs = sorted(listed | {float(f) for per_fov in runs.values() for f in per_fov})
     lines = [
         "| Scene | "
         + " | ".join(f"{f:.0f}°" for f in fovs)
@@ -87,7 +88,9 @@ def to_markdown(res: dict[str, object]) -> str:
             best = min(means, key=lambda f: means[f][0])
             bm, bh = means[best]
             overlap = all(abs(m - bm) <= h + bh for f, (m, h) in means.items() if f != best)
-            best_cell, overlap_cell = f"{best:.0f}°", "yes" if overlap else "no"
+            unknown = any(np.isnan(h) for _, h in means.values())
+            best_cell = f"{best:.0f}°"
+            overlap_cell = "n/a (n < 2)" if unknown else ("yes" if overlap else "no")
         else:
             best_cell = overlap_cell = "–"
         seed = SEED_PAPER_FOV.get(scene)

@@ -65,3 +65,25 @@ def test_simulated_windows_follow_the_sgan_filter() -> None:
     assert w.num_windows == 1 and w.num_peds == 2  # only the window starting at frame 3
     assert np.allclose(w.traj[0, :, 0], 0.1 * np.arange(3, 23), atol=1e-6)
     assert windows_from_tracks({}).num_windows == 0
+
+
+def test_fov_table_flags_distinguishable_optima_and_refuses_bad_input(capsys: pytest.CaptureFixture) -> None:
+    from predictors import fov_study
+
+    def runs(*vals: float) -> list[dict[str, float]]:
+        return [{"seed": i, "val_ade": v} for i, v in enumerate(vals)]
+
+    res = {
+        "fovs": [60.0, 360.0],
+        "runs": {
+            "eth": {"60.0": runs(0.40, 0.41, 0.42), "360.0": runs(0.50, 0.51, 0.52)},
+            "hotel": {"60.0": runs(0.40, 0.50, 0.45), "360.0": runs(0.42, 0.52, 0.47)},
+            "univ": {"60.0": runs(0.4)},
+        },
+    }
+    rows = {line.split(" | ")[0]: line for line in fov_study.to_markdown(res).splitlines()}
+    assert "| 60° | no | 85° |" in rows["| eth"]  # 0.41 ± 0.025 vs 0.51 ± 0.025: distinguishable
+    assert "| 60° | yes | 75° |" in rows["| hotel"]  # spread of 0.05 between seeds: not
+    assert "n/a (n < 2)" in rows["| univ"]
+    assert fov_study.main(["--scenes", "mars"]) == 2
+    assert "mars" in capsys.readouterr().err
