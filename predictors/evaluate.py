@@ -10,11 +10,22 @@ Metrics in metres:
   CVM's);
 * ``ped20``: best-of-20 *per pedestrian*, ADE and FDE minimised separately (Social-STGCNN, Trajectron++);
 * ``scene20``: best-of-20 *per scene* (Social-GAN ``evaluate_model.py``): per window the sample whose summed
-  error over the window's pedestrians is smallest, ADE and FDE minimised separately.
+  error over the window's pedestrians is smallest, ADE and FDE minimised separately;
+* ``es``: energy score of the 20 samples (Gneiting & Raftery 2007; Shahroudi et al. 2024), per pedestrian on
+  the flattened 24-dimensional future, averaged: a strictly proper scoring rule, so a spread tuned for
+  best-of-N (which rewards over-dispersion) cannot pass as a good predictive distribution. Lower is better.
+
+Baselines tuned on val only: ``dcvm`` (damped CVM + persistent Gaussian velocity offset,
+:mod:`predictors.damped`, ``(d, s)`` per scene). Social-force rows (:mod:`predictors.social_force`): ``sf``
+and ``sf-qlb`` use the simulator's default parameters (classical / QLB-updated intensity), ``sf-fit`` and
+``sf-fit-qlb`` the parameters fitted on the scene's train split (``predictors/social_force_fit.json``).
 
 Learned models use ``predictors/weights/<kind>_<scene>.pt`` (trained on that scene's ``train/`` split,
-selected on ``val/``); their 20 samples use :meth:`SocialRecurrent.sample`'s default ``correlated`` mode
-(chosen on the ETH and HOTEL validation splits over ``autoregressive`` and ``independent``). For SDD,
+selected on ``val/``). Their 20 samples are drawn from the model's own predictive distribution, per step and
+autoregressively (each drawn displacement is fed back, as Social-LSTM and Social-GAN sample), with the
+learned sigma unscaled. ``<kind>+corr`` is the earlier variant: the most-likely path plus one persistent
+draw per sample through each step's Gaussian, sigma multiplied by the ``sample_scale`` tuned on val for
+best-of-20 (not a draw from the model's joint distribution). For SDD,
 ``<kind>_sdd.pt`` is used if present, else ``<kind>_all.pt`` (trained on all ETH/UCY recordings: a
 cross-dataset result, flagged in the output). SDD glitch steps are not filtered.
 """
@@ -25,21 +36,25 @@ import argparse
 import json
 import sys
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import torch
 
 from crossing_common.files import write_text_atomic
+from predictors import damped, social_force
 from predictors.baselines import cvm, cvm_samples, kalman_predict, kalman_samples
 from predictors.data import SCENES, Windows, default_data_root, iterate_batches, load_split
 from predictors.models import MODEL_KINDS
 from predictors.train import WEIGHTS_DIR, load_model
 
-BASELINES: tuple[str, ...] = ("cvm", "cvm-s", "kalman")
-ALL_MODELS: tuple[str, ...] = (*BASELINES, *MODEL_KINDS)
+BASELINES: tuple[str, ...] = ("cvm", "cvm-s", "kalman", "dcvm")
+SOCIAL_FORCE: tuple[str, ...] = ("sf", "sf-qlb", "sf-fit", "sf-fit-qlb")
+CORRELATED: tuple[str, ...] = tuple(f"{k}+corr" for k in MODEL_KINDS)
+ALL_MODELS: tuple[str, ...] = (*BASELINES, *SOCIAL_FORCE, *MODEL_KINDS, *CORRELATED)
 EVAL_SCENES: tuple[str, ...] = (*SCENES, "sdd")
-METRICS: tuple[str, ...] = ("k1", "ped20", "scene20")
+METRICS: tuple[str, ...] = ("k1", "ped20", "scene20", "es")
 
 Predictor = Callable[[torch.Tensor, torch.Tensor, int, torch.Generator], tuple[torch.Tensor, torch.Tensor]]
 
@@ -58,6 +73,17 @@ def scene_min(err: torch.Tensor, seq_start_end: torch.Tensor) -> torch.Tensor:
     return sums.min(dim=0).values
 
 
+def energy_score(samples: torch.Tensor, fut: torch.Tensor) -> torch.Tensor:
+    """Per-pedestrian energy score ``E|X - y| - E|X - X'|/2`` of ``samples (S, N, T, 2)`` against ``fut``.
+
+    Sample estimate over the flattened ``T * 2`` trajectory (the V-statistic form, which is 0 for a point
+    mass on the truth); a deterministic predictor scores its Euclidean distance to the true future.
+    """
+    x = samples.permute(1, 0, 2, 3).flatten(2)  # (N, S, T*2)
+    y = fut.flatten(1)[:, None]  # (N, 1, T*2)
+    return (x - y).norm(dim=-1).mean(dim=1) - 0.5 * torch.cdist(x, x).mean(dim=(1, 2))
+
+
 def weights_for(kind: str, scene: str, weights_dir: Path) -> Path | None:
     """Checkpoint used for ``kind`` on ``scene`` (see module docstring), or ``None`` if absent."""
     for name in [f"{kind}_{scene}.pt"] + ([f"{kind}_all.pt"] if scene == "sdd" else []):
@@ -66,19 +92,42 @@ def weights_for(kind: str, scene: str, weights_dir: Path) -> Path | None:
     return None
 
 
-def make_predictor(name: str, scene: str, weights_dir: Path) -> tuple[Predictor | None, str]:
-    """A function ``(obs, seq_start_end, k, generator) -> (most_likely, samples)`` and its source label."""
+def make_predictor(
+    name: str, scene: str, weights_dir: Path, data_root: Path | None = None
+) -> tuple[Predictor | None, str]:
+    """A function ``(obs, seq_start_end, k, generator) -> (most_likely, samples)`` and its source label.
+
+    ``data_root`` is needed by ``dcvm``, which is tuned on the scene's val split here.
+    """
+    if name == "dcvm":
+        if data_root is None:
+            raise ValueError("dcvm needs the data root to tune on the val split")
+        p, _ = damped.tune(load_split(data_root, scene, "val"))
+        return (lambda o, s, k, g: (p.predict(o), p.sample(o, k, g))), f"d={p.damping:g} s={p.spread:g}"
+    if name in SOCIAL_FORCE:
+        fitted = name.startswith("sf-fit")
+        try:
+            sf = social_force.load_fit(social_force.FIT_FILE, scene, "fit" if fitted else "default")
+        except (FileNotFoundError, KeyError):
+            if fitted:
+                return None, "no fit"
+            sf = social_force.SocialForcePredictor()
+        sf = replace(sf, qlb=name.endswith("qlb"))
+        label = ", ".join(f"{k}={getattr(sf.force, k):g}" for k in social_force.FIT_FIELDS)
+        return (lambda o, s, k, g: (sf.predict(o, s), sf.sample(o, s, k, g))), label
     if name == "cvm":
         return (lambda o, s, k, g: (cvm(o), cvm(o)[None].expand(k, -1, -1, -1))), "-"
     if name == "cvm-s":
         return (lambda o, s, k, g: (cvm(o), cvm_samples(o, k, g))), "sigma=25deg"
     if name == "kalman":
         return (lambda o, s, k, g: (kalman_predict(o), kalman_samples(o, k, g))), "-"
-    path = weights_for(name, scene, weights_dir)
+    kind, _, variant = name.partition("+")
+    mode = "correlated" if variant == "corr" else "autoregressive"
+    path = weights_for(kind, scene, weights_dir)
     if path is None:
         return None, "no weights"
     model = load_model(path)
-    return (lambda o, s, k, g: (model.predict(o, s), model.sample(o, s, k, g))), path.name
+    return (lambda o, s, k, g: (model.predict(o, s), model.sample(o, s, k, g, mode))), path.name
 
 
 @torch.no_grad()
@@ -99,6 +148,7 @@ def evaluate_one(
             float(scene_min(ade_s, b.seq_start_end).sum()),
             float(scene_min(fde_s, b.seq_start_end).sum()),
         ]
+        acc["es"] += [float(energy_score(samples, b.fut).sum()), 0.0]
         n += b.obs.shape[0]
     return {m: [float(v) for v in acc[m] / max(n, 1)] for m in METRICS}
 
@@ -123,7 +173,7 @@ def run(
         w = load_split(data_root, scene, "test")
         counts[scene] = [w.num_windows, w.num_peds]
         for name in models:
-            pred, source = make_predictor(name, scene, weights_dir)
+            pred, source = make_predictor(name, scene, weights_dir, data_root)
             entry: dict[str, object] = {"weights": source}
             if pred is not None:
                 entry.update(evaluate_one(pred, w, num_samples, seed + 1000 * si))
@@ -154,10 +204,12 @@ def to_markdown(res: dict[str, object]) -> str:
         "k1": "Most likely (K = 1)",
         "ped20": "Best-of-20, per pedestrian (ADE and FDE minimised separately)",
         "scene20": "Best-of-20, per scene (Social-GAN `evaluate_model.py` style)",
+        "es": "Energy score of the 20 samples (m, lower is better; proper scoring rule)",
     }
     results: dict[str, dict[str, dict]] = res["results"]  # type: ignore[assignment]
     cols = [*SCENES, "avg", "sdd"]
     lines = []
+    dagger = False
     for m in METRICS:
         lines += [f"### {titles[m]}", "", "| Model | " + " | ".join(c.upper() for c in cols) + " |"]
         lines.append("|---" * (len(cols) + 1) + "|")
@@ -167,7 +219,10 @@ def to_markdown(res: dict[str, object]) -> str:
                 e = entries.get(c, {})
                 if m in e:
                     flag = "†" if c == "sdd" and str(e.get("weights", "")).endswith("_all.pt") else ""
-                    cells.append(f"{e[m][0]:.2f}/{e[m][1]:.2f}{flag}")
+                    dagger = dagger or bool(flag)
+                    cells.append(
+                        f"{e[m][0]:.2f}{flag}" if m == "es" else f"{e[m][0]:.2f}/{e[m][1]:.2f}{flag}"
+                    )
                 else:
                     cells.append("–")
             lines.append(f"| {name} | " + " | ".join(cells) + " |")
@@ -176,8 +231,8 @@ def to_markdown(res: dict[str, object]) -> str:
     lines.append(
         "Test windows / pedestrian instances: " + ", ".join(f"{s} {c[0]}/{c[1]}" for s, c in counts.items())
     )
-    lines.append("")
-    lines.append("† SDD evaluated with the model trained on all ETH/UCY recordings (cross-dataset).")
+    if dagger:
+        lines += ["", "† SDD evaluated with the model trained on all ETH/UCY recordings (cross-dataset)."]
     return "\n".join(lines) + "\n"
 
 
