@@ -73,13 +73,14 @@ class World:
 
     # ------------------------------------------------------------------ stepping
     def _car_snapshot(self) -> CarSnapshot:
-        x, direction, speed, half_length = self.traffic.moving()
+        x, direction, speed, half_length, lane = self.traffic.moving()
         return CarSnapshot(
             x=x,
             direction=direction,
             speed=speed,
             half_length=half_length,
             boxes=self.traffic.boxes(),
+            lane=lane,
         )
 
     def step(self, ego_acceleration: float) -> None:
@@ -92,7 +93,16 @@ class World:
         # Background drivers: obstacles are pedestrians on the road, at the kerb, or on the zebra
         # (positions have not moved since the masks were refreshed at the end of the last step).
         at_zebra = peds.anyone_at_zebra(self.ped_on_crossing)
-        acc = tr.background_accelerations(peds.position, self.ped_on_road, at_zebra, green is True)
+        acc = tr.background_accelerations(
+            peds.position,
+            self.ped_on_road,
+            at_zebra,
+            green is True,
+            peds.velocity,
+            peds.state,
+            np.ascontiguousarray(peds.waypoint[:, 1]),
+            peds.radius,
+        )
         acc[0] = ego_acceleration
         # Kinematic bodies move by velocity: use the mean velocity of the step so pymunk ends where we do.
         start_positions, vel = tr.advance(acc, dt, self.scenario.ego.max_speed)

@@ -35,7 +35,7 @@ from crossing_env.pedestrians.transitions import (
     walk_inputs,
 )
 from crossing_env.road import RoadGeometry
-from crossing_env.types import BehaviourEvent, FloatArray
+from crossing_env.types import BehaviourEvent, FloatArray, IntArray
 from scenarios.config import PedestrianConfig, PedestrianSpawn, ScenarioConfig
 
 
@@ -44,7 +44,7 @@ class CarSnapshot:
     """What pedestrians need to know about the vehicles for their gap decisions."""
 
     x: FloatArray
-    """(C,) front-centre... centre x of each moving vehicle."""
+    """(C,) centre x of each moving vehicle."""
     direction: FloatArray
     """(C,) +1 / −1 travel direction."""
     speed: FloatArray
@@ -53,6 +53,8 @@ class CarSnapshot:
     """(C,) half vehicle length."""
     boxes: FloatArray
     """(C_all, 4) boxes of all vehicles (parked included) for the social force."""
+    lane: IntArray
+    """(C,) lane index of each moving vehicle (for lane-by-lane gap acceptance)."""
 
 
 class PedestrianPopulation:
@@ -136,6 +138,8 @@ class PedestrianPopulation:
             geometry.kerb_north + 0.55 * scenario.road.sidewalk_width,
         )
         self._speed_scale = 0.9 if scenario.night else 1.0
+        self._lanes = (float(scenario.road.lane_width), int(scenario.road.num_lanes))
+        """(lane width, number of lanes), as the lane-by-lane gap check takes them."""
 
     # ------------------------------------------------------------------ spawning
     @property
@@ -312,7 +316,7 @@ class PedestrianPopulation:
         )
         # WAITING: decide.
         if waiting.size:
-            red, gap, seen, critical_gap, phase, waited, red_violator = waiting_context(
+            red, gap, seen, critical_gap, phase, waited, red_violator, safe = waiting_context(
                 waiting,
                 pedestrian_green is False,
                 self.jaywalker,
@@ -322,10 +326,15 @@ class PedestrianPopulation:
                 self.wait_time,
                 self.red_violator,
                 self.crossing_x,
+                self.side,
+                self.base_speed,
+                self.radius,
                 cars.x,
+                cars.lane,
                 cars.direction,
                 cars.half_length,
                 cars.speed,
+                *self._lanes,
             )
             # A distracted pedestrian looks up late: `seen` is the gap it saw DISTRACTED_LOOK_DELAY ago.
             ctx = DecisionContext(
@@ -338,17 +347,22 @@ class PedestrianPopulation:
                 dt=self.dt,
             )
             prob = self.decision_model.probability(ctx)
-            go = self.rng.random(waiting.size) < prob
+            # Nobody steps into a lane a car will occupy while they are in it (lane by lane, at their own
+            # speed); the draw comes first so the random stream does not depend on the check.
+            go = (self.rng.random(waiting.size) < prob) & safe
             # Groups move together: members wait at the kerb for companions still walking up (for at most
-            # GROUP_MAX_WAIT), and if one member goes, waiting companions go too.
+            # GROUP_MAX_WAIT), and if one member goes, waiting companions go too. A group decides on its
+            # members' worst gap: if any waiting member's lanes are not safe, nobody in the group goes.
             groups = self.group[waiting]
             if go.any() and np.any(groups >= 0):
                 walking_up = self.group[(self.state == APPROACHING) & self.intends & (self.group >= 0)]
                 patient = waited < GROUP_MAX_WAIT
                 held = (groups >= 0) & np.isin(groups, walking_up) & patient
-                go &= ~held
+                unsafe_groups = groups[~safe & (groups >= 0)]
+                group_safe = ~((groups >= 0) & np.isin(groups, unsafe_groups))
+                go &= ~held & group_safe
                 moving_groups = groups[go & (groups >= 0)]
-                go |= (groups >= 0) & np.isin(groups, moving_groups) & ~held
+                go |= (groups >= 0) & np.isin(groups, moving_groups) & ~held & group_safe
             for k in np.flatnonzero(go):
                 self.accepted_gap[waiting[k]] = gap[k]
                 self._start_crossing(int(waiting[k]), bool(red[k]))

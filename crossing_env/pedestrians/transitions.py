@@ -37,6 +37,11 @@ GROUP_JOIN_DISTANCE = 1.5
 """Metres from a waiting companion at which a group member walking up counts as arrived at the kerb."""
 GROUP_MAX_WAIT = 15.0
 """Seconds a group member at the kerb waits for companions still walking up before deciding alone."""
+LANE_GAP_MARGIN = 1.0
+"""Seconds of margin a pedestrian keeps, lane by lane, between its own time in a lane and a car's (design
+choice: about one human reaction time, so a driver who reacts late can still brake)."""
+START_UP_TIME = 0.5
+"""Seconds a pedestrian at the kerb loses getting up to walking speed (the social force's relaxation time)."""
 
 
 @njit(cache=True, nogil=True)
@@ -112,6 +117,52 @@ def gaps(
                     out[k] = 0.0  # the car's body covers the line
             elif speed[c] > 0.3:
                 out[k] = min(out[k], ahead / max(speed[c], 1e-3))
+    return out
+
+
+@njit(cache=True, nogil=True)
+def lane_safe(
+    rows: np.ndarray,
+    crossing_x: FloatArray,
+    side: FloatArray,
+    walk_speed: FloatArray,
+    radius: FloatArray,
+    look_delay: FloatArray,
+    car_x: FloatArray,
+    car_lane: np.ndarray,
+    direction: FloatArray,
+    half_length: FloatArray,
+    speed: FloatArray,
+    lane_width: float,
+    num_lanes: int,
+) -> np.ndarray:
+    """Per pedestrian at `rows`: whether every lane it must cross is free while it is in that lane.
+
+    Lane by lane, the pedestrian's time in the lane (entering with its body edge, leaving with its far
+    edge, at its own walking speed from a standstill at the kerb) is compared with the time each moving
+    car occupies the pedestrian's line (front reaching it to rear leaving it, at constant speed, seen
+    `look_delay` late): the two must be `LANE_GAP_MARGIN` apart. A car far enough away, or one that
+    passes before the pedestrian reaches its lane, is no conflict; stopped cars are none either.
+    """
+    out = np.ones(rows.shape[0], np.bool_)
+    for k in range(rows.shape[0]):
+        i = rows[k]
+        v = max(walk_speed[i], 0.3)
+        r = radius[i]
+        for c in range(car_x.shape[0]):
+            if speed[c] <= 0.3:
+                continue
+            lane = min(max(car_lane[c], 0), num_lanes - 1)
+            # Distance walked from the kerb standoff to enter / leave the lane (south side walks north).
+            near = lane * lane_width if side[i] > 0 else (num_lanes - lane - 1) * lane_width
+            t_in = START_UP_TIME + max(near + KERB_STANDOFF - r, 0.0) / v
+            t_out = START_UP_TIME + (near + lane_width + KERB_STANDOFF + r) / v
+            ahead = (crossing_x[i] - car_x[c]) * direction[c] - half_length[c]
+            t_front = (ahead - r) / speed[c] + look_delay[k]
+            t_rear = (ahead + 2.0 * half_length[c] + r) / speed[c] + look_delay[k]
+            if t_rear > t_in - LANE_GAP_MARGIN and t_front < t_out + LANE_GAP_MARGIN:
+                out[k] = False
+                break
     return out
 
 
@@ -288,22 +339,47 @@ def waiting_context(
     wait_time: FloatArray,
     red_violator: np.ndarray,
     crossing_x: FloatArray,
+    side: FloatArray,
+    walk_speed: FloatArray,
+    radius: FloatArray,
     car_x: FloatArray,
+    car_lane: np.ndarray,
     direction: FloatArray,
     half_length: FloatArray,
     speed: FloatArray,
-) -> tuple[np.ndarray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, np.ndarray]:
-    """Per waiting slot: (red, gap, gap seen, critical gap, phase, waited, red violator).
+    lane_width: float,
+    num_lanes: int,
+) -> tuple[np.ndarray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, np.ndarray, np.ndarray]:
+    """Per waiting slot: (red, gap, gap seen, critical gap, phase, waited, red violator, lanes safe).
 
     Red applies to the zebra's signal, so not to jaywalkers; the gap seen by a distracted pedestrian is
-    the one of `DISTRACTED_LOOK_DELAY` seconds ago.
+    the one of `DISTRACTED_LOOK_DELAY` seconds ago. "Lanes safe" is `lane_safe` with that late look; a
+    pedestrian who does not look (critical gap 0, children running out) skips the check.
     """
     red = np.empty(waiting.shape[0], np.bool_)
     for k in range(waiting.shape[0]):
         red[k] = signal_red and not jaywalker[waiting[k]]
     gap = gaps(crossing_x, waiting, car_x, direction, half_length, speed)
-    seen = gap + DISTRACTED_LOOK_DELAY * distracted[waiting]
-    return red, gap, seen, critical_gap[waiting], phase[waiting], wait_time[waiting], red_violator[waiting]
+    delay = DISTRACTED_LOOK_DELAY * distracted[waiting]
+    seen = gap + delay
+    safe = lane_safe(
+        waiting,
+        crossing_x,
+        side,
+        walk_speed,
+        radius,
+        delay,
+        car_x,
+        car_lane,
+        direction,
+        half_length,
+        speed,
+        lane_width,
+        num_lanes,
+    )
+    crit = critical_gap[waiting]
+    safe |= crit <= 0.0
+    return red, gap, seen, crit, phase[waiting], wait_time[waiting], red_violator[waiting], safe
 
 
 @njit(cache=True, nogil=True)
