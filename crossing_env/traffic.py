@@ -154,14 +154,15 @@ class Traffic:
 
     # ------------------------------------------------------------------ geometry helpers
     def _place_laterally(self, i: int) -> None:
-        """Centre y and direction of slot i from its highway-env lane (parked: the strip by the south kerb).
+        """Centre y and direction of slot i from its highway-env lane (parked: the parking strip's middle).
 
         Done once per spawn: vehicles keep their lanes, so the hot path only reads the cached `y` and
         `direction` arrays.
         """
         self.direction[i] = self.geometry.lane_direction[self.lane[i]]
         if self.parked[i]:
-            self.y[i] = self.geometry.kerb_south - self.width[i] / 2 - 0.1
+            strip = self.geometry.parking_strip
+            self.y[i] = (strip.y_min + strip.y_max) / 2
         else:
             self.y[i] = self.geometry.lane_y[self.lane[i]]
 

@@ -55,7 +55,12 @@ class World:
             history_length=self.config.observation.history_length,
         )
         t = scenario.traffic
-        self.physics = PhysicsWorld(self.traffic.capacity, self.pedestrians.capacity, (t.length, t.width))
+        self.physics = PhysicsWorld(
+            self.traffic.capacity,
+            self.pedestrians.capacity,
+            (t.length, t.width),
+            (float(scenario.road.length), *self.geometry.walkway_bounds),
+        )
         self.collisions: list[CollisionEvent] = []
         """Ego collisions that began during the last step."""
         self.background_collisions: list[CollisionEvent] = []
@@ -191,6 +196,8 @@ class World:
             pedestrian_radii=peds.radius[act].copy(),
             pedestrian_states=peds.state[act].copy(),
             intends_to_cross=peds.intends[act].copy(),
+            intent_decided_at=peds.intent_time[act].copy(),
+            is_bystander=peds.bystander[act].copy(),
             on_crossing=self.ped_on_crossing[act],
             on_road=self.ped_on_road[act],
             waiting=(peds.state[act] == WAITING),

@@ -29,6 +29,7 @@ from crossing_env.pedestrians.transitions import (
     TURNS_BACK,
     anyone_at_zebra,
     begin_transitions,
+    detour,
     finish_transitions,
     geometric_masks,
     waiting_context,
@@ -36,7 +37,7 @@ from crossing_env.pedestrians.transitions import (
 )
 from crossing_env.road import RoadGeometry
 from crossing_env.types import BehaviourEvent, FloatArray, IntArray
-from scenarios.config import PedestrianConfig, PedestrianSpawn, ScenarioConfig
+from scenarios.config import PedestrianConfig, PedestrianSpawn, ScenarioConfig, WaitingPlace
 
 
 @dataclass(frozen=True)
@@ -91,6 +92,9 @@ class PedestrianPopulation:
         self.base_speed = np.ones(n)
         self.side = np.ones(n)  # +1 starts south (walks north), −1 starts north
         self.intends = np.zeros(n, dtype=bool)
+        self.intent_time = np.full(n, np.nan)  # when the current intent was decided (s)
+        self.bystander = np.zeros(n, dtype=bool)  # near the crossing, not meaning to cross
+        self.dwell_left = np.zeros(n)  # seconds a bystander still stands at its waiting place
         self.crossing_x = np.zeros(n)
         self.waypoint = np.zeros((n, 2))
         self.goal = np.zeros((n, 2))
@@ -134,9 +138,14 @@ class PedestrianPopulation:
         self._force_parameters = model_parameters(self.config.social_force)
         """The social-force config as the kernels take it (unpacked once, not every step)."""
         self._walk_y = (
-            geometry.kerb_south - 0.55 * scenario.road.sidewalk_width,
+            geometry.sidewalk_south.y_max - 0.55 * scenario.road.sidewalk_width,
             geometry.kerb_north + 0.55 * scenario.road.sidewalk_width,
         )
+        """(south, north) walking lines: the middle of each sidewalk proper (beyond any parking strip)."""
+        self._bystanders_placed = False
+        places = self.config.bystanders.places
+        weights = np.array([p.weight for p in places], dtype=np.float64)
+        self._place_weights = weights / weights.sum() if weights.sum() > 0 else weights
         self._speed_scale = 0.9 if scenario.night else 1.0
         self._lanes = (float(scenario.road.lane_width), int(scenario.road.num_lanes))
         """(lane width, number of lanes), as the lane-by-lane gap check takes them."""
@@ -205,6 +214,9 @@ class PedestrianPopulation:
         self.red_violator[i] = self.rng.random() < b.red_light_rate
         self.group[i] = spawn.group
         self.intends[i] = spawn.crosses
+        self.intent_time[i] = self.time  # every plan is fixed at spawn (turning back keeps the intent)
+        self.bystander[i] = not spawn.crosses  # walking past along the sidewalk
+        self.dwell_left[i] = 0.0
         self.wait_time[i] = 0.0
         self.hesitate_left[i] = 0.0
         self.crossed_on_red[i] = False
@@ -277,6 +289,43 @@ class PedestrianPopulation:
                 )
                 self.spawn(mate)
 
+    def spawn_bystander(self, place: WaitingPlace, group: int = -1) -> int | None:
+        """One bystander standing at `place` (it walks on along the sidewalk after its dwell time)."""
+        offset = self.rng.uniform(-place.spread / 2, place.spread / 2)
+        x = float(np.clip(place.x + offset, 1.0, self._road_length - 1.0))
+        i = self.spawn(PedestrianSpawn(x=x, side=place.side, crosses=False, group=group))
+        if i is None:
+            return None
+        y = (
+            self._kerb_lines[0] - place.kerb_distance
+            if place.side == "south"
+            else (self._kerb_lines[1] + place.kerb_distance)
+        )
+        self.position[i] = (x, y)
+        self.history[i] = self.position[i]
+        self.dwell_left[i] = self.rng.exponential(self.config.bystanders.dwell_mean)
+        return i
+
+    def _place_bystanders(self) -> None:
+        """The people standing at the waiting places at the start (a corner's as one talking group)."""
+        self._bystanders_placed = True
+        for place in self.config.bystanders.places:
+            group = -1
+            if place.kind == "corner" and place.initial > 1:
+                group = self.next_group
+                self.next_group += 1
+            for _ in range(place.initial):
+                self.spawn_bystander(place, group)
+
+    def _bystander_arrivals(self) -> None:
+        """Poisson arrivals at the waiting places (off a bus, out of a shop)."""
+        b = self.config.bystanders
+        if b.arrival_rate <= 0:
+            return
+        for _ in range(self.rng.poisson(b.arrival_rate / 60.0 * self.dt)):
+            place = b.places[int(self.rng.choice(len(b.places), p=self._place_weights))]
+            self.spawn_bystander(place)
+
     # ------------------------------------------------------------------ per step
     def _log(self, i: int, kind: str) -> None:
         self.events.append(BehaviourEvent(time=self.time, pedestrian_id=int(self.ids[i]), kind=kind))
@@ -287,8 +336,12 @@ class PedestrianPopulation:
         self.events = []
         while self._pending and self._pending[0].time <= time + 1e-9:
             self.spawn(self._pending.pop(0))
+        if not self._bystanders_placed:
+            self._place_bystanders()
         self._random_arrivals()
+        self._bystander_arrivals()
         self._update_states(cars, pedestrian_green)
+        detour(self.state, self.position, self.velocity, self.waypoint, self.radius, cars.boxes)
         if self.config.behaviour.update_force_intensity:
             self._update_force_intensity()
         self._update_velocities(cars)
@@ -438,7 +491,13 @@ class PedestrianPopulation:
 
     def _update_velocities(self, cars: CarSnapshot) -> None:
         rows, v0, stay = walk_inputs(
-            self.state, self.hesitate_left, self.desired_speed, self.position, *self._kerb_lines
+            self.state,
+            self.hesitate_left,
+            self.dwell_left,
+            self.desired_speed,
+            self.position,
+            *self._kerb_lines,
+            self.dt,
         )
         if rows.size == 0:
             return

@@ -104,7 +104,7 @@ def gaps(
     """Time gap (s) until the first approaching car reaches the crossing line of each pedestrian at `rows`.
 
     Cars already past the line and stopped cars are ignored (every line spans the whole carriageway); a
-    car whose body already covers the line gives a gap of 0.
+    moving car whose body already covers the line gives a gap of 0.
     """
     out = np.full(rows.shape[0], np.inf)
     for k in range(rows.shape[0]):
@@ -113,8 +113,8 @@ def gaps(
             # Distance from the car's front to the pedestrian's line, along the car's travel direction.
             ahead = (cx - car_x[c]) * direction[c] - half_length[c]
             if ahead < 0:
-                if ahead > -2 * half_length[c] - 0.5:
-                    out[k] = 0.0  # the car's body covers the line
+                if ahead > -2 * half_length[c] - 0.5 and speed[c] > 0.3:
+                    out[k] = 0.0  # a moving car's body covers the line (a stopped one is walked round)
             elif speed[c] > 0.3:
                 out[k] = min(out[k], ahead / max(speed[c], 1e-3))
     return out
@@ -259,26 +259,64 @@ def finish_transitions(
 def walk_inputs(
     state: np.ndarray,
     hesitate_left: FloatArray,
+    dwell_left: FloatArray,
     desired_speed: FloatArray,
     position: FloatArray,
     kerb_south: float,
     kerb_north: float,
+    dt: float,
 ) -> tuple[np.ndarray, FloatArray, np.ndarray]:
     """Active slots, desired speeds and sidewalk constraint for the social-force step.
 
-    Hesitating pedestrians want to stand (v0 = 0); waiting ones keep walking towards their kerb point
+    Hesitating pedestrians and bystanders standing at their place want to stand (v0 = 0); the bystanders'
+    dwell timers run down here. Waiting ones keep walking towards their kerb point
     (the arrival slow-down makes them stand there; with no attraction, the kerb repulsion would push them
     back). Only crossing pedestrians may be on the carriageway: everyone else is held on the sidewalk.
     (The step itself is `social_force.walk_step`, called from Python: kernels never call kernels of
     another module, whose changes numba's on-disk cache would not notice.)
     """
     rows = np.flatnonzero(state != INACTIVE)
-    v0 = np.where(hesitate_left > 0, 0.0, desired_speed)
+    v0 = np.where((hesitate_left > 0) | (dwell_left > 0), 0.0, desired_speed)
     stay = np.empty(state.shape[0], dtype=np.bool_)
     for i in range(state.shape[0]):
+        dwell_left[i] = max(0.0, dwell_left[i] - dt)
         on_road = kerb_south < position[i, 1] < kerb_north
         stay[i] = state[i] != CROSSING and not (state[i] == APPROACHING and on_road)
     return rows, v0, stay
+
+
+@njit(cache=True, nogil=True)
+def detour(
+    state: np.ndarray,
+    position: FloatArray,
+    velocity: FloatArray,
+    waypoint: FloatArray,
+    radius: FloatArray,
+    boxes: FloatArray,
+) -> None:
+    """Crossing pedestrians held up by a vehicle standing on their line walk round it (waypoints in place).
+
+    A crossing pedestrian slower than 0.3 m/s whose straight line to its far-kerb waypoint runs into a
+    vehicle box within 1.5 m moves its waypoint's x past the nearer end of the box (plus its radius and
+    0.3 m), instead of waiting behind the vehicle for as long as it stands there.
+    """
+    for i in range(state.shape[0]):
+        if state[i] != CROSSING:
+            continue
+        vx, vy = velocity[i, 0], velocity[i, 1]
+        if vx * vx + vy * vy > 0.09:
+            continue
+        x, y, r = position[i, 0], position[i, 1], radius[i]
+        ty = waypoint[i, 1]
+        for c in range(boxes.shape[0]):
+            x0, y0, x1, y1 = boxes[c, 0], boxes[c, 1], boxes[c, 2], boxes[c, 3]
+            if not (x0 - r < x < x1 + r):
+                continue
+            ahead = y0 - (y + r) if ty > y else (y - r) - y1
+            if -r < ahead < 1.5:
+                left, right = x0 - r - 0.3, x1 + r + 0.3
+                waypoint[i, 0] = left if x - left < right - x else right
+                break
 
 
 @njit(cache=True, nogil=True)
