@@ -86,3 +86,15 @@ def format_table(summary: dict[str, Any], policies: Sequence[str]) -> str:
         if i == 0:
             lines.append("  ".join("-" * w for w in widths))
     return "\n".join(lines)
+
+
+def format_world_health(summary: dict[str, Any]) -> str:
+    """One line on the world around the ego: background car–pedestrian contacts (the ego is not involved)."""
+    agg = summary["overall"]
+    lo, hi = agg["background_collision_ci95"]
+    return (
+        f"world health: {agg['background_collisions']} background car-pedestrian contact(s)"
+        f" ({agg['background_collisions_legal']} with a legal pedestrian) in {agg['episodes']} episodes;"
+        f" episodes with one {agg['background_collision_rate']:.3f} [{lo:.3f}, {hi:.3f}];"
+        f" max relative speed {_fmt(agg['background_collision_max_speed'])} m/s"
+    )
