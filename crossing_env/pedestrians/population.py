@@ -214,7 +214,7 @@ class PedestrianPopulation:
         self.red_violator[i] = self.rng.random() < b.red_light_rate
         self.group[i] = spawn.group
         self.intends[i] = spawn.crosses
-        self.intent_time[i] = round(self.time, 9)  # every plan is fixed at spawn (turning back keeps the intent)
+        self.intent_time[i] = round(self.time, 9)  # plans are fixed at spawn; turning back keeps them
         self.bystander[i] = not spawn.crosses  # walking past along the sidewalk
         self.dwell_left[i] = 0.0
         self.wait_time[i] = 0.0
