@@ -57,17 +57,8 @@ class PhysicsWorld:
     """A pymunk space holding pooled vehicle and pedestrian bodies."""
 
     def __init__(
-        self,
-        vehicle_capacity: int,
-        pedestrian_capacity: int,
-        vehicle_size: tuple[float, float],
-        walkway_bounds: tuple[float, float, float] | None = None,
+        self, vehicle_capacity: int, pedestrian_capacity: int, vehicle_size: tuple[float, float]
     ) -> None:
-        """Pools of bodies; `walkway_bounds` = (road length, south y, north y) adds the building lines.
-
-        The building lines are static walls along the outer edges of both walkways (a margin beyond each
-        end of the road): pedestrians cannot be pushed off the map sideways by a crowd or a car.
-        """
         self.space = pymunk.Space()
         self.space.iterations = 10
         self.num_vehicles = vehicle_capacity
@@ -99,12 +90,6 @@ class PhysicsWorld:
             shape.slot = i
             self.space.add(body, shape)
             self.pedestrian_shapes.append(shape)
-        if walkway_bounds is not None:
-            road_length, south, north = walkway_bounds
-            for y in (south, north):
-                wall = pymunk.Segment(self.space.static_body, (-50.0, y), (road_length + 50.0, y), 0.0)
-                wall.friction = 0.0
-                self.space.add(wall)
         self.space.on_collision(CAR, PEDESTRIAN, begin=_on_car_pedestrian, data=self.contacts)
         self._set_buffer = _SET_BUFFER
         self._get_buffer = _GET_BUFFER

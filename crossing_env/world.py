@@ -55,12 +55,7 @@ class World:
             history_length=self.config.observation.history_length,
         )
         t = scenario.traffic
-        self.physics = PhysicsWorld(
-            self.traffic.capacity,
-            self.pedestrians.capacity,
-            (t.length, t.width),
-            (float(scenario.road.length), *self.geometry.walkway_bounds),
-        )
+        self.physics = PhysicsWorld(self.traffic.capacity, self.pedestrians.capacity, (t.length, t.width))
         self.collisions: list[CollisionEvent] = []
         """Ego collisions that began during the last step."""
         self.background_collisions: list[CollisionEvent] = []
@@ -122,6 +117,9 @@ class World:
             act,
             dt,
             self.config.max_substep_displacement,
+        )
+        _keep_on_walkways(
+            peds.position, peds.velocity, peds.radius, peds.state, *self.geometry.walkway_bounds
         )
         self._refresh_masks()
         self._record_contacts(contacts)
@@ -220,6 +218,32 @@ class World:
 def _resized(state: np.ndarray, body_radius: FloatArray, radius: FloatArray) -> np.ndarray:
     """Active pool slots whose body radius differs from the one their physics circle was given."""
     return np.flatnonzero((state != 0) & (np.abs(body_radius - radius) > 1e-9))
+
+
+@njit(cache=True, nogil=True)
+def _keep_on_walkways(
+    position: FloatArray,
+    velocity: FloatArray,
+    radius: FloatArray,
+    state: np.ndarray,
+    south: float,
+    north: float,
+) -> None:
+    """The building lines: bodies pushed past a walkway's outer edge are put back against it (in place).
+
+    A crowd or a car can push a pedestrian outwards; its outward velocity is removed as well. A static
+    pymunk wall would do the same, but with one, runs with the same seed differed in the last bits.
+    """
+    for i in range(state.shape[0]):
+        if state[i] == 0:
+            continue
+        lo, hi = south + radius[i], north - radius[i]
+        if position[i, 1] < lo:
+            position[i, 1] = lo
+            velocity[i, 1] = max(velocity[i, 1], 0.0)
+        elif position[i, 1] > hi:
+            position[i, 1] = hi
+            velocity[i, 1] = min(velocity[i, 1], 0.0)
 
 
 @njit(cache=True, nogil=True)

@@ -294,12 +294,14 @@ def test_groups_cross_together() -> None:
     behaviour = BehaviourConfig(
         decision_model="qlb", hesitation_rate=0.0, turn_back_rate=0.0, distraction_rate=0.0
     )
+    # Busy, but not so busy that no gap lets a group clear both lanes (lane by lane, at walking speed)
+    # within a minute: at 900 cars/h per lane it hardly ever comes.
     scenario = ScenarioConfig(
-        traffic=TrafficConfig(flow_per_lane=900.0),
+        traffic=TrafficConfig(flow_per_lane=300.0),
         pedestrians=PedestrianConfig(spawns=spawns, spawn_rate=0.0, behaviour=behaviour),
     )
     for seed in range(3):
-        _, events = _run(scenario, seconds=40.0, seed=seed)
+        _, events = _run(scenario, seconds=60.0, seed=seed)
         start = {e.pedestrian_id: e.time for e in events if e.kind == "start_crossing"}
         assert len(start) == 5
         assert start[0] == start[1]

@@ -219,7 +219,8 @@ def test_nobody_walks_beyond_the_outer_walkway_edges() -> None:
         world.step(0.0)
         peds = world.pedestrians
         y = peds.position[peds.active, 1]
-        assert np.all((y > south) & (y < north))  # centres inside; bodies press into the walls by < 0.3 m
+        r = peds.radius[peds.active]
+        assert np.all((y - r >= south - 1e-9) & (y + r <= north + 1e-9))
 
 
 def test_a_pedestrian_walks_round_a_car_standing_on_its_line() -> None:
