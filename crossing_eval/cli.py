@@ -18,7 +18,7 @@ from typing import Any
 from agents import POLICIES
 from crossing_common.cli import int_at_least
 from crossing_eval.outputs import write_outputs
-from crossing_eval.report import format_table, format_world_health, summarise
+from crossing_eval.report import format_table, summarise
 from crossing_eval.runners import default_workers, run_tasks
 from crossing_eval.tasks import EpisodeRecord, make_tasks
 from scenarios import list_scenarios
@@ -186,7 +186,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     summary = summarise(records)
     files = write_outputs(records, summary, _settings(args, records), args.out)
     print(format_table(summary, args.policies))
-    print(format_world_health(summary))
     print(
         f"\n{len(records)} episodes in {wall:.1f} s ({len(records) / max(wall, 1e-9):.2f} episodes/s);"
         f" wrote {', '.join(files[:5])} and {len(files) - 5} worst-episode log(s) to {args.out}/"

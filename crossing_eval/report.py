@@ -69,7 +69,7 @@ def _row(name: str, agg: dict[str, Any]) -> list[str]:
 
 
 def format_table(summary: dict[str, Any], policies: Sequence[str]) -> str:
-    """Fixed-width text table: one row per policy plus 'overall'."""
+    """Fixed-width text table: one row per policy plus 'overall', then the world-health line."""
     rows = [[c for c, _ in TABLE_COLUMNS]]
     entries = [(p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]]
     entries.append(("overall", summary["overall"]))
@@ -85,6 +85,7 @@ def format_table(summary: dict[str, Any], policies: Sequence[str]) -> str:
         )
         if i == 0:
             lines.append("  ".join("-" * w for w in widths))
+    lines.append(format_world_health(summary))
     return "\n".join(lines)
 
 
