@@ -8,6 +8,7 @@ terminated (collision, end of road) / truncated (scenario duration).
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -19,24 +20,35 @@ from gymnasium import spaces
 from crossing_env.observation import ObservationBuilder
 from crossing_env.types import CrossingObs, GroundTruth, StepReturn
 from crossing_env.world import World
-from scenarios import load_scenario, validate_scenario
+from scenarios import load_scenario, scenario_from_dict, validate_scenario
 from scenarios.config import EgoConfig, EnvConfig, ScenarioConfig
+from scenarios.overrides import apply_overrides, env_config_from_dict
 
 END_OF_ROAD_MARGIN = 10.0
 """The episode terminates when the ego's centre is this close to the end of the road (m)."""
 
 
-def resolve_scenario(scenario: str | os.PathLike[str] | ScenarioConfig | None) -> ScenarioConfig:
-    """A validated scenario config from a built-in name, a TOML path, a config object, or None (the default).
+def resolve_scenario(
+    scenario: str | os.PathLike[str] | ScenarioConfig | Mapping[str, Any] | None,
+    overrides: Mapping[str, Any] | None = None,
+) -> ScenarioConfig:
+    """A validated scenario config, then dotted-key `overrides` (`scenarios.overrides`) applied.
 
-    Config objects built in Python go through the same schema checks as files, so a bad value fails here
-    with the field's name instead of misbehaving later.
+    `scenario` is a built-in name, a TOML path, a config object, a dict shaped like a scenario file, or
+    None (the default).
+
+    Config objects and dicts built in Python go through the same schema checks as files, so a bad value
+    fails here with the field's name instead of misbehaving later.
     """
     if scenario is None or (isinstance(scenario, (str, Path)) and str(scenario) == "default"):
-        return ScenarioConfig()
-    if isinstance(scenario, ScenarioConfig):
-        return validate_scenario(scenario)
-    return load_scenario(scenario)
+        cfg = ScenarioConfig()
+    elif isinstance(scenario, ScenarioConfig):
+        cfg = validate_scenario(scenario)
+    elif isinstance(scenario, Mapping):
+        cfg = scenario_from_dict(scenario, "<scenario dict>")
+    else:
+        cfg = load_scenario(scenario)
+    return apply_overrides(cfg, overrides) if overrides else cfg
 
 
 def action_to_acceleration(action: np.ndarray | float, ego: EgoConfig) -> np.ndarray:
@@ -55,11 +67,33 @@ def acceleration_to_action(acceleration: np.ndarray | float, ego: EgoConfig) -> 
     return np.clip(u, -1.0, 1.0).astype(np.float32)
 
 
+def check_action(action: Any) -> float:
+    """The one real, finite number in `action` (a float, or an array of shape () or (1,)).
+
+    Strings, booleans, complex numbers and other shapes are refused rather than coerced: a silently
+    converted action hides a bug in the policy. Out-of-range values are accepted and clipped to [-1, 1]
+    (Gymnasium's convention for Box actions, as its `ClipAction` wrapper does).
+
+    Raises:
+        ValueError: for anything that is not one finite real number.
+    """
+    wanted = "one finite real number (a float or an array of shape (1,)); values outside [-1, 1] are clipped"
+    arr = np.asarray(action) if not isinstance(action, (str, bytes)) else None
+    if arr is None or arr.dtype.kind not in "iuf" or arr.shape not in ((), (1,)):
+        shape = "" if arr is None else f" (dtype {arr.dtype}, shape {arr.shape})"
+        raise ValueError(f"action must be {wanted}; got {action!r}{shape}")
+    value = float(arr.reshape(-1)[0])
+    if not np.isfinite(value):
+        raise ValueError(f"action must be {wanted}; got {action!r}")
+    return value
+
+
 class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
     """A car approaching a pedestrian crossing; the action is its normalised longitudinal acceleration.
 
     Action: shape (1,) in [−1, 1]; −1 is full braking (`EgoConfig.max_deceleration`), +1 full throttle
-    (`EgoConfig.max_acceleration`), 0 holds speed (see `action_to_acceleration`).
+    (`EgoConfig.max_acceleration`), 0 holds speed (see `action_to_acceleration`). Values outside [−1, 1]
+    are clipped; strings, complex numbers, NaN and other shapes raise `ValueError` (`check_action`).
 
     Observation: a Dict of float32 boxes (`crossing_env.observation`): ego state, K pedestrian slots
     (presence, position relative to the ego, world-frame velocity, on-crossing / waiting / on-road flags;
@@ -73,12 +107,27 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
     def __init__(
         self,
         scenario: str | os.PathLike[str] | ScenarioConfig | None = None,
-        config: EnvConfig | None = None,
+        config: EnvConfig | Mapping[str, Any] | None = None,
         render_mode: str | None = None,
+        overrides: Mapping[str, Any] | None = None,
     ) -> None:
+        """Build the env.
+
+        Args:
+            scenario: A built-in name, a TOML path, a `ScenarioConfig`, a dict shaped like a scenario file,
+                or None for the default scenario.
+            config: An `EnvConfig` or a dict of its fields, e.g. ``{"dt": 0.05}`` (validated).
+            render_mode: None, "rgb_array" or "human".
+            overrides: Dotted-key changes to the scenario, e.g. ``{"pedestrians.spawn_rate": 12.0}``.
+
+        Raises:
+            ScenarioError: for a bad scenario, override or config, naming the field, value and rule.
+        """
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode={render_mode!r}; allowed: {self.metadata['render_modes']} or None")
-        self.scenario = resolve_scenario(scenario)
+        self.scenario = resolve_scenario(scenario, overrides)
+        if isinstance(config, Mapping):
+            config = env_config_from_dict(config)
         self.config = config or EnvConfig()
         self.render_mode = render_mode
         self.action_space = spaces.Box(low=-1.0, high=1.0, shape=(1,), dtype=np.float32)
@@ -112,10 +161,7 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
         """Apply the ego acceleration for one `dt`."""
         if self.world is None:
             raise RuntimeError("call reset() before step()")
-        u = np.asarray(action, dtype=np.float64).reshape(-1)
-        if u.size != 1 or not np.isfinite(u[0]):
-            raise ValueError(f"action must be one finite number in [-1, 1], got {action!r}")
-        accel = float(action_to_acceleration(u[0], self.scenario.ego))
+        accel = float(action_to_acceleration(check_action(action), self.scenario.ego))
         world = self.world
         x_before = world.traffic.x[0]
         world.step(accel)
@@ -148,8 +194,12 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
             "failing_to_yield": w.failing_to_yield if in_crossing and bool(peds_in_half.any()) else 0.0,
         }
 
-    def render(self) -> np.ndarray | None:
-        """Top-down frame: `rgb_array` returns it, `human` shows it in a window."""
+    def render(self, observation: dict[str, np.ndarray] | None = None) -> np.ndarray | None:
+        """Top-down frame: `rgb_array` returns it, `human` shows it in a window.
+
+        `observation` (as `crossing_env.render.ShowPredictions` passes it) adds the predictor wrappers'
+        predicted paths and intentions to the frame.
+        """
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode")
             return None
@@ -159,7 +209,7 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
 
         if self._renderer is None:
             self._renderer = TopDownRenderer(self.config, human=self.render_mode == "human")
-        frame = self._renderer.draw(self.world)
+        frame = self._renderer.draw(self.world, observation)
         return frame if self.render_mode == "rgb_array" else None
 
     def close(self) -> None:

@@ -16,12 +16,20 @@ from pathlib import Path
 from typing import Any
 
 from agents import POLICIES
-from crossing_common.cli import int_at_least
+from crossing_common.cli import DefaultsHelpFormatter, int_at_least, positive_float
+from crossing_common.folders import OutputFolderError, StagedFolder
 from crossing_eval.outputs import write_outputs
 from crossing_eval.report import format_table, summarise
-from crossing_eval.runners import default_workers, run_tasks
+from crossing_eval.runners import (
+    DEFAULT_RAY_TIMEOUT,
+    EpisodeFailed,
+    RayConnectionError,
+    default_workers,
+    run_tasks,
+)
+from crossing_eval.tables import scenario_labels
 from crossing_eval.tasks import EpisodeRecord, make_tasks
-from scenarios import list_scenarios
+from scenarios import ScenarioError, list_scenarios, load_scenario
 
 DEFAULT_EPISODES = 5
 """Episodes per (scenario, policy) in the default run: 8 scenarios x 5 seeds x 5 policies = 200 episodes."""
@@ -51,7 +59,9 @@ def build_parser() -> argparse.ArgumentParser:
     """The `crossing-eval` argument parser."""
     parser = argparse.ArgumentParser(
         prog="crossing-eval",
-        description="Evaluate driving policies on crossing scenarios (safety and efficiency metrics).",
+        description="Evaluate driving policies on crossing scenarios (safety and efficiency metrics)."
+        " `crossing-eval compare DIR_A DIR_B` prints the differences between two runs.",
+        formatter_class=DefaultsHelpFormatter,
     )
     parser.add_argument(
         "--scenarios",
@@ -63,24 +73,26 @@ def build_parser() -> argparse.ArgumentParser:
         "--policies",
         type=_names,
         default=None,
-        help="comma-separated policy names (default: all): see agents.POLICIES",
+        help=f"comma-separated policy names (default: all): {', '.join(POLICIES)}",
     )
     parser.add_argument(
         "--episodes",
         type=int_at_least(1),
         default=DEFAULT_EPISODES,
-        help=f"episodes (seeds) per scenario and policy (default {DEFAULT_EPISODES})",
+        help="episodes (seeds) per scenario and policy",
     )
-    parser.add_argument("--seed", type=_int, default=DEFAULT_SEED, help=f"base seed (default {DEFAULT_SEED})")
+    parser.add_argument("--seed", type=_int, default=DEFAULT_SEED, help="base seed")
     parser.add_argument(
         "--workers",
         type=int_at_least(1),
         default=default_workers(),
-        help="parallel worker processes (local) or CPUs for a fresh local Ray"
-        f" (default: the CPUs available, here {default_workers()})",
+        help="parallel worker processes (local) or CPUs for a fresh local Ray (default: the CPUs available)",
     )
     parser.add_argument(
-        "--out", type=Path, default=Path(DEFAULT_OUT), help=f"output folder (default ./{DEFAULT_OUT})"
+        "--out",
+        type=Path,
+        default=Path(DEFAULT_OUT),
+        help="output folder; replaced whole at the end of the run (an earlier run's folder or an empty one)",
     )
     parser.add_argument(
         "--backend",
@@ -95,16 +107,22 @@ def build_parser() -> argparse.ArgumentParser:
         " crossing-env installed); default: a fresh local Ray",
     )
     parser.add_argument(
+        "--ray-timeout",
+        type=positive_float,
+        default=DEFAULT_RAY_TIMEOUT,
+        help="seconds to wait for the Ray cluster at --address before giving up",
+    )
+    parser.add_argument(
         "--predictor",
         choices=PREDICTOR_CHOICES,
         default="s-cgru",
-        help="trajectory predictor wrapper for policies that use predictions (default s-cgru)",
+        help="trajectory predictor wrapper for policies that use predictions",
     )
     parser.add_argument(
         "--intention",
         choices=INTENTION_CHOICES,
         default="qlb",
-        help="crossing-intention wrapper for policies that use predictions (default qlb)",
+        help="crossing-intention wrapper for policies that use predictions",
     )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
@@ -168,9 +186,38 @@ def _settings(args: argparse.Namespace, records: Sequence[EpisodeRecord]) -> dic
     }
 
 
+def _fail(message: str) -> int:
+    """One clear line on stderr and exit status 2 (bad input or an unusable setting; no traceback)."""
+    print(f"crossing-eval: error: {message}", file=sys.stderr)
+    return 2
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of `crossing-eval`; returns the exit status (0 ok, 2 bad arguments)."""
+    """Entry point of `crossing-eval`; returns the exit status (0 ok, 2 bad arguments or input)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv[:1] == ["compare"]:
+        from crossing_eval.compare import main as compare_main
+
+        return compare_main(argv[1:])
     args = _parse(build_parser(), argv)
+    # Every scenario file is read and validated before the first episode (and before any worker starts).
+    try:
+        for name in args.scenarios:
+            load_scenario(name)
+        labels = scenario_labels(args.scenarios)
+    except ScenarioError as exc:
+        return _fail(str(exc))
+    try:
+        staged = StagedFolder(args.out, marker="results.json")
+    except OutputFolderError as exc:
+        return _fail(f"argument --out: {exc}")
+    try:
+        return _run(args, labels, staged)
+    finally:
+        staged.discard()  # a no-op after a commit; drops half-written output on any error or Ctrl-C
+
+
+def _run(args: argparse.Namespace, labels: dict[str, str], staged: StagedFolder) -> int:
     tasks = make_tasks(
         args.scenarios, args.policies, args.episodes, args.seed, args.predictor, args.intention
     )
@@ -181,14 +228,34 @@ def main(argv: Sequence[str] | None = None) -> int:
         file=sys.stderr,
     )
     t0 = time.perf_counter()
-    records = run_tasks(tasks, args.workers, args.backend, args.address, show_progress=not args.no_progress)
+    try:
+        records = run_tasks(
+            tasks,
+            args.workers,
+            args.backend,
+            args.address,
+            show_progress=not args.no_progress,
+            ray_timeout=args.ray_timeout,
+        )
+    except (ScenarioError, EpisodeFailed, RayConnectionError) as exc:
+        return _fail(str(exc))
+    except ValueError as exc:
+        # predictors.checkpoints.CheckpointError (a ValueError; imported lazily with torch): bad weights.
+        if type(exc).__name__ != "CheckpointError":
+            raise
+        return _fail(str(exc))
     wall = time.perf_counter() - t0
     summary = summarise(records)
-    files = write_outputs(records, summary, _settings(args, records), args.out)
+    settings = _settings(args, records)
+    settings["scenario_names"] = labels
+    files = write_outputs(records, summary, settings, staged.path)
+    staged.commit()
     print(format_table(summary, args.policies))
+    worst = sum(f.startswith("worst/") for f in files)
     print(
         f"\n{len(records)} episodes in {wall:.1f} s ({len(records) / max(wall, 1e-9):.2f} episodes/s);"
-        f" wrote {', '.join(files[:5])} and {len(files) - 5} worst-episode log(s) to {args.out}/"
+        f" wrote {', '.join(f for f in files if not f.startswith('worst/'))} and {worst} worst-episode"
+        f" log(s) to {args.out}/"
     )
     return 0
 

@@ -2,8 +2,11 @@
 
 - ``results.json``: the settings, a summary per policy, per (scenario, policy) and overall, and every
   episode's metrics (`crossing_env.safety.EpisodeResult.as_dict`);
-- ``episodes.csv`` (one row per episode) and ``summary.csv`` (one row per policy and "overall");
-- ``safety_vs_efficiency.png`` and ``min_ttc.png`` (matplotlib, Agg backend);
+- ``episodes.csv`` (one row per episode), ``summary.csv`` (one row per policy and "overall") and
+  ``per_scenario.csv`` (one row per scenario and policy); missing or undefined values are empty cells;
+- ``report.md`` (pooled and per-scenario tables, `crossing_eval.tables`) and ``table.txt`` (the printed
+  table);
+- ``safety_vs_efficiency.png`` and ``min_ttc.png`` (ECDF per policy; matplotlib, Agg backend);
 - ``worst/*.json``: episode logs of the worst episodes (collisions first, then lowest min TTC; the five
   worst overall plus the worst of every other policy) that ``crossing-replay episode`` re-runs.
 
@@ -25,6 +28,8 @@ import numpy as np
 
 from crossing_common.files import write_bytes_atomic
 from crossing_env.safety import json_safe
+from crossing_eval.report import format_table
+from crossing_eval.tables import csv_cell, per_scenario_rows, report_markdown, scenario_labels
 from crossing_eval.tasks import EpisodeRecord
 from crossing_replay.episode_log import save_episode_log
 
@@ -71,12 +76,7 @@ CSV_EPISODE_FIELDS = (
 # ---------------------------------------------------------------------------------------------------------
 
 
-def _csv_value(x: Any) -> Any:
-    if isinstance(x, float) and not math.isfinite(x):
-        return "nan" if math.isnan(x) else ("inf" if x > 0 else "-inf")
-    if x is None:
-        return ""
-    return x
+_csv_value = csv_cell
 
 
 def _csv_text(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
@@ -96,6 +96,7 @@ def _write_results_json(
         "episodes": [
             {
                 "scenario": r.task.scenario,
+                "scenario_name": settings.get("scenario_names", {}).get(r.task.scenario, r.task.scenario),
                 "policy": r.task.policy,
                 "episode": r.task.episode,
                 "seed": r.task.seed,
@@ -172,11 +173,10 @@ def _draw_safety_vs_efficiency(ax: Axes, summary: dict[str, Any], names: Sequenc
         agg = summary["per_policy"][name]
         lo, hi = agg["collision_ci95"]
         rate = agg["collision_rate"]
-        delay = agg["mean_delay"]
-        x = 0.0 if delay is None or math.isnan(delay) else delay
+        x = agg["censored_mean_delay"]
         ax.errorbar(x, rate, yerr=[[rate - lo], [hi - rate]], fmt="o", capsize=4, label=name)
         ax.annotate(name, (x, rate), textcoords="offset points", xytext=(6, 6), fontsize=8)
-    ax.set_xlabel("mean delay at the crossing (s)  → less efficient")
+    ax.set_xlabel("delay at the crossing, non-passing episodes at the duration (s)  → less efficient")
     ax.set_ylabel("collision rate (95% Wilson CI)  → less safe")
     ax.set_title("Safety vs efficiency per policy")
     ax.grid(alpha=0.3)
@@ -184,23 +184,42 @@ def _draw_safety_vs_efficiency(ax: Axes, summary: dict[str, Any], names: Sequenc
 
 
 def _draw_min_ttc(ax: Axes, records: Sequence[EpisodeRecord], names: Sequence[str]) -> None:
+    """Empirical CDF of the episode minimum TTC per policy (curves do not hide each other as bars do).
+
+    Episodes without a finite TTC never enter the curve, so each curve ends at its finite fraction.
+    """
     cap = 10.0
-    bins = np.linspace(0.0, cap, 21)
-    for name in names:
+    colours = plt_colours(len(names))
+    for name, colour in zip(names, colours, strict=True):
         vals = np.array(
             [
-                r.result["min_ttc"] if r.result["min_ttc"] is not None else np.inf
+                r.result["min_ttc"]
                 for r in records
-                if r.task.policy == name
+                if r.task.policy == name and r.result["min_ttc"] is not None
             ],
             dtype=np.float64,
         )
-        ax.hist(np.minimum(vals, cap), bins=bins, histtype="step", linewidth=1.5, label=name)
-    ax.axvline(1.5, color="red", linestyle="--", linewidth=1, label="serious conflict (1.5 s)")
-    ax.set_xlabel(f"episode minimum TTC to a pedestrian (s; ≥ {cap:g} and 'never' in the last bin)")
-    ax.set_ylabel("episodes")
-    ax.set_title("Minimum TTC distribution per policy")
-    ax.legend(fontsize=8)
+        n = sum(r.task.policy == name for r in records)
+        vals = np.sort(vals[np.isfinite(vals)])
+        xs = np.concatenate([[0.0], np.minimum(vals, cap), [cap]])
+        ys = np.concatenate([[0.0], np.arange(1, vals.size + 1) / max(n, 1), [vals.size / max(n, 1)]])
+        ax.step(xs, ys, where="post", linewidth=1.6, color=colour, label=f"{name} (n={n})")
+    ax.axvline(1.5, color="black", linestyle=":", linewidth=1.2, label="serious conflict (1.5 s)")
+    ax.set_xlim(0.0, cap)
+    ax.set_ylim(0.0, 1.0)
+    ax.set_xlabel(f"episode minimum TTC to a pedestrian (s; axis cut at {cap:g})")
+    ax.set_ylabel("fraction of episodes with min TTC ≤ x")
+    ax.set_title("Minimum TTC per policy (ECDF; 'never' episodes stay off the curve)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+
+
+def plt_colours(n: int) -> list[Any]:
+    """`n` distinct colours from matplotlib's qualitative tab10 map (none of them the threshold's black)."""
+    from matplotlib import colormaps
+
+    cmap = colormaps["tab10"]
+    return [cmap(i % 10) for i in range(n)]
 
 
 def _save_fig(fig: Figure, path: Path) -> None:
@@ -269,18 +288,32 @@ def save_worst(records: Sequence[EpisodeRecord], out: Path, n: int = WORST_EPISO
 def write_outputs(
     records: Sequence[EpisodeRecord], summary: dict[str, Any], settings: dict[str, Any], out: Path
 ) -> list[str]:
-    """JSON, CSVs, plots and worst-episode logs; every file written atomically. Returns the file names."""
+    """JSON, CSVs, report, table, plots and worst-episode logs; every file written atomically.
+
+    `out` is normally the staging folder of `crossing_common.folders.StagedFolder`, swapped in whole by
+    the caller. Returns the file names.
+    """
     out.mkdir(parents=True, exist_ok=True)
     policies = settings["policies"]
+    labels = settings.get("scenario_names") or scenario_labels(sorted({r.task.scenario for r in records}))
     _write_results_json(records, summary, settings, out)
     _write_episodes_csv(records, out)
     _write_summary_csv(summary, policies, out)
+    header, rows = per_scenario_rows(summary, labels, policies)
+    write_bytes_atomic(out / "per_scenario.csv", _csv_text(header, rows).encode("utf-8"))
+    write_bytes_atomic(
+        out / "report.md", report_markdown(summary, policies, labels, settings).encode("utf-8")
+    )
+    write_bytes_atomic(out / "table.txt", (format_table(summary, policies) + "\n").encode("utf-8"))
     _plot(records, summary, policies, out)
     worst = save_worst(records, out)
     return [
         "results.json",
+        "report.md",
+        "table.txt",
         "episodes.csv",
         "summary.csv",
+        "per_scenario.csv",
         "safety_vs_efficiency.png",
         "min_ttc.png",
         *(f"worst/{w}" for w in worst),

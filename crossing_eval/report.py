@@ -7,8 +7,9 @@ from collections.abc import Sequence
 from typing import Any
 
 from crossing_env.safety import EpisodeResult
-from crossing_eval.statistics import aggregate
+from crossing_eval.statistics import aggregate, censored_delay
 from crossing_eval.tasks import EpisodeRecord
+from scenarios import load_scenario
 
 TABLE_COLUMNS = (
     ("policy", "policy"),
@@ -19,25 +20,44 @@ TABLE_COLUMNS = (
     ("DRAC mean", "drac_crossing_mean"),
     ("hard brakes/ep", "hard_brakes_per_episode"),
     ("yield compl. (n)", None),
-    ("mean delay s", "mean_delay"),
     ("pass rate", "pass_rate"),
+    ("delay s (censored)", "censored_mean_delay"),
 )
 """Table columns: (header, `aggregate` key, or None where the cell combines several keys)."""
 
 
 def summarise(records: Sequence[EpisodeRecord]) -> dict[str, Any]:
-    """Per policy, per (scenario, policy) and overall aggregates (`crossing_eval.statistics.aggregate`)."""
+    """Per policy, per (scenario, policy) and overall aggregates (`crossing_eval.statistics.aggregate`).
+
+    Each aggregate also holds the censored delay (`crossing_eval.statistics.censored_delay`): episodes
+    that never pass count at their scenario's duration.
+    """
+    horizons = {s: load_scenario(s).duration for s in {r.task.scenario for r in records}}
     results = [EpisodeResult.from_dict(r.result) for r in records]
     by_policy: dict[str, list[Any]] = {}
     by_pair: dict[str, list[Any]] = {}
     for rec, res in zip(records, results, strict=True):
-        by_policy.setdefault(rec.task.policy, []).append(res)
-        by_pair.setdefault(f"{rec.task.scenario}/{rec.task.policy}", []).append(res)
+        by_policy.setdefault(rec.task.policy, []).append((res, horizons[rec.task.scenario]))
+        by_pair.setdefault(f"{rec.task.scenario}/{rec.task.policy}", []).append(
+            (res, horizons[rec.task.scenario])
+        )
+    every = [(res, horizons[rec.task.scenario]) for rec, res in zip(records, results, strict=True)]
     return {
-        "per_policy": {k: aggregate(v) for k, v in by_policy.items()},
-        "per_scenario_policy": {k: aggregate(v) for k, v in sorted(by_pair.items())},
-        "overall": aggregate(results),
+        "per_policy": {k: _aggregate(v) for k, v in by_policy.items()},
+        "per_scenario_policy": {k: _aggregate(v) for k, v in sorted(by_pair.items())},
+        "overall": _aggregate(every),
     }
+
+
+def _aggregate(pairs: Sequence[tuple[EpisodeResult, float]]) -> dict[str, Any]:
+    results = [r for r, _ in pairs]
+    agg = aggregate(results)
+    agg.update(
+        censored_delay(
+            [r.delay for r in results], [r.passed_crossing for r in results], [h for _, h in pairs]
+        )
+    )
+    return agg
 
 
 def _fmt(x: Any, digits: int = 2) -> str:
@@ -63,8 +83,8 @@ def _row(name: str, agg: dict[str, Any]) -> list[str]:
         _fmt(agg["drac_crossing_mean"]),
         _fmt(agg["hard_brakes_per_episode"]),
         f"{_fmt(comp, 3)} ({agg['yield_obligations']})",
-        _fmt(agg["mean_delay"]),
         _fmt(agg["pass_rate"]),
+        _fmt(agg["censored_mean_delay"]),
     ]
 
 

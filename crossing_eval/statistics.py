@@ -15,7 +15,13 @@ from numpy.typing import ArrayLike
 
 from crossing_env.safety import EpisodeResult, MetricsConfig
 
-__all__ = ["aggregate", "finite_percentiles", "wilson_interval"]
+__all__ = [
+    "aggregate",
+    "censored_delay",
+    "finite_percentiles",
+    "newcombe_difference",
+    "wilson_interval",
+]
 
 
 def wilson_interval(successes: int, n: int, z: float = 1.96) -> tuple[float, float]:
@@ -134,3 +140,43 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
         "background_collision_ci95": wilson_interval(bg_episodes, n),
         "background_collision_max_speed": float(np.nanmax(bg_speed)) if bg_any else math.nan,
     }
+
+
+def censored_delay(delays: ArrayLike, passed: ArrayLike, horizons: ArrayLike) -> dict[str, float]:
+    """Delay with the episodes that never pass counted: pass rate plus the censored mean delay.
+
+    The plain mean delay covers passing episodes only, so a policy that never passes looks prompt. Here an
+    episode that did not pass counts with a delay equal to its scenario's duration (`horizons`, s): the
+    right-censored value, a lower bound on its true delay, so the mean is a lower bound too and can only
+    rise when such episodes pass later. Returns pass_rate, censored_mean_delay and censored_episodes.
+    """
+    d = np.asarray(delays, dtype=np.float64).ravel()
+    ok = np.asarray(passed, dtype=bool).ravel()
+    h = np.broadcast_to(np.asarray(horizons, dtype=np.float64), d.shape)
+    if d.size == 0:
+        raise ValueError("censored_delay: no episodes given")
+    values = np.where(ok & np.isfinite(d), d, h)
+    return {
+        "pass_rate": float(ok.mean()),
+        "censored_mean_delay": float(values.mean()),
+        "censored_episodes": int(np.count_nonzero(~ok)),
+    }
+
+
+def newcombe_difference(
+    successes_a: int, n_a: int, successes_b: int, n_b: int, z: float = 1.96
+) -> tuple[float, float, float]:
+    """Difference of two proportions b − a with Newcombe's hybrid score interval (from Wilson intervals).
+
+    Used by ``crossing-eval compare`` for collision and pass rates: like Wilson's interval it stays sensible
+    at 0 or n events, where the normal approximation collapses to a zero-width interval.
+    """
+    if n_a == 0 or n_b == 0:
+        return math.nan, -1.0, 1.0
+    pa, pb = successes_a / n_a, successes_b / n_b
+    la, ua = wilson_interval(successes_a, n_a, z)
+    lb, ub = wilson_interval(successes_b, n_b, z)
+    diff = pb - pa
+    low = diff - math.sqrt((pb - lb) ** 2 + (ua - pa) ** 2)
+    high = diff + math.sqrt((ub - pb) ** 2 + (pa - la) ** 2)
+    return diff, max(-1.0, low), min(1.0, high)

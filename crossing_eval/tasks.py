@@ -134,9 +134,13 @@ def build_env(scenario: str, predictor: str = "none", intention: str = "none") -
         except ImportError as exc:
             _warn_once(f"trajectory wrapper unavailable ({exc}); running without predicted_paths")
         else:
+            from predictors.checkpoints import CheckpointError
+
             try:
                 env = TrajectoryPrediction(env, model=predictor)
                 used.append(f"trajectory:{predictor}")
+            except CheckpointError:
+                raise  # corrupt or tampered weights: never evaluate silently without them
             except (OSError, ValueError, RuntimeError) as exc:
                 _warn_once(f"trajectory predictor {predictor!r} failed to load ({exc}); running without it")
     return env, used

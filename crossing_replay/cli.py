@@ -30,11 +30,12 @@ import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from crossing_common.cli import DefaultsHelpFormatter
 from crossing_replay.episode_log import save_episode_log
 from crossing_replay.episodes import INTENTION_WRAPPERS
 from crossing_replay.errors import ReplayError
 from crossing_replay.recorder import record_episode, replay_episode_log
-from crossing_replay.scene import DATASETS, record_scene
+from crossing_replay.scene import DATASETS, SCENE_MODELS, record_scene
 from crossing_replay.viewer import open_viewer, screenshot
 
 
@@ -57,45 +58,100 @@ def _positive_int(text: str) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     """The `crossing-replay` argument parser."""
+    fmt = DefaultsHelpFormatter
     p = argparse.ArgumentParser(
         prog="crossing-replay",
-        description="Write crossing episodes and real pedestrian scenes to rerun recordings (.rrd); "
-        "--view opens them in the rerun viewer.",
+        description="Write crossing episodes and real pedestrian scenes to rerun recordings (.rrd) or"
+        " videos; --view opens recordings in the rerun viewer.",
+        formatter_class=fmt,
     )
     sub = p.add_subparsers(dest="command", required=True)
-    r = sub.add_parser("record", help="run an episode and record it")
+    r = sub.add_parser("record", help="run an episode and record it", formatter_class=fmt)
     r.add_argument("--scenario", required=True, help="built-in scenario name or scenario TOML path")
     r.add_argument("--policy", default="constant", help="policy (agents.make_policy, or constant/random)")
     r.add_argument("--seed", type=_non_negative_int, default=0, help="reset seed")
     r.add_argument("--out", required=True, help="output .rrd")
     r.add_argument("--steps", type=_positive_int, default=None, help="stop after this many steps")
-    r.add_argument("--predictor", default=None, help="trajectory predictor wrapper (cvm, s-cgru, path)")
-    r.add_argument("--intention", default=None, choices=sorted(INTENTION_WRAPPERS), help="intention wrapper")
+    r.add_argument(
+        "--predictor",
+        default=None,
+        help="trajectory predictor wrapper: cvm, s-cgru, ... or a checkpoint path; 'none' for no wrapper"
+        " (default: the best available for a policy that reads predictions, else none)",
+    )
+    r.add_argument(
+        "--intention",
+        default=None,
+        choices=[*sorted(INTENTION_WRAPPERS), "none"],
+        help="intention wrapper; 'none' for no wrapper (default: as for --predictor)",
+    )
     r.add_argument("--save-log", default=None, help="also write the episode log (JSON) here")
     r.add_argument("--view", action="store_true", help="open the recording in the rerun viewer")
-    e = sub.add_parser("episode", help="replay a saved episode log")
+    e = sub.add_parser("episode", help="replay a saved episode log", formatter_class=fmt)
     e.add_argument("log", help="episode log (.json) written by save_episode_log")
     e.add_argument("--out", required=True, help="output .rrd")
-    e.add_argument("--view", action="store_true", help="open the recording in the rerun viewer")
-    s = sub.add_parser("scene", help="replay a real ETH/UCY or SDD scene with predictions")
-    s.add_argument("--dataset", required=True, choices=DATASETS)
-    s.add_argument("--file", default=None, help="trajectory file (path or name in the dataset's test folder)")
-    s.add_argument("--data", default=None, help="data root (default $CROSSING_DATA or <repo>/../shared/data)")
-    s.add_argument("--model", default="s-cgru", help="s-cgru, s-lstm, ... (learned), cvm or kalman")
-    s.add_argument(
-        "--weights", default=None, help="folder of <model>_<dataset>.pt (default predictors/weights)"
+    e.add_argument(
+        "--without-predictors",
+        action="store_true",
+        help="replay without the log's predictor wrappers when they cannot be loaded here (else an error)",
     )
-    s.add_argument("--start-frame", type=_non_negative_int, default=0, help="first frame index of the slice")
+    e.add_argument("--view", action="store_true", help="open the recording in the rerun viewer")
+    s = sub.add_parser(
+        "scene", help="replay a real ETH/UCY or SDD scene with predictions", formatter_class=fmt
+    )
+    s.add_argument("--dataset", required=True, choices=DATASETS, help="which recording set to replay")
+    s.add_argument("--file", default=None, help="trajectory file (path or name in the dataset's test folder)")
+    s.add_argument(
+        "--data", default=None, help="data root (default: $CROSSING_DATA or <repo>/../shared/data)"
+    )
+    s.add_argument(
+        "--model", default="s-cgru", choices=[*SCENE_MODELS, "cvm", "kalman"], help="trajectory predictor"
+    )
+    s.add_argument(
+        "--weights", default=None, help="folder of <model>_<dataset>.pt (default: predictors/weights)"
+    )
+    s.add_argument(
+        "--fallback-cvm",
+        action="store_true",
+        help="use constant velocity (announced in the recording) when the model's weights are missing",
+    )
+    s.add_argument(
+        "--start-frame",
+        type=_non_negative_int,
+        default=None,
+        help="first frame index of the slice (default: the first frame with half the peak crowd)",
+    )
     s.add_argument("--max-frames", type=_positive_int, default=None, help="number of frames to replay")
     s.add_argument("--out", required=True, help="output .rrd")
     s.add_argument("--view", action="store_true", help="open the recording in the rerun viewer")
-    g = sub.add_parser("screenshot", help="PNG of the viewer showing a recording (headless, needs Vulkan)")
-    g.add_argument("rrd", help="recording (.rrd)")
+    g = sub.add_parser(
+        "screenshot",
+        help="PNG of the viewer showing a recording (headless, needs Vulkan)",
+        formatter_class=fmt,
+    )
+    g.add_argument("rrd", help="recording (.rrd); checked with `rerun rrd verify` first")
     g.add_argument("--out", required=True, help="output .png")
     g.add_argument("--time", type=float, default=0.0, help="sim_time to show, seconds")
     g.add_argument("--port", type=_positive_int, default=9877, help="gRPC port of the headless viewer")
     g.add_argument("--max-kb", type=_positive_int, default=500, help="downscale until the PNG is this small")
+    v = sub.add_parser("video", help="render an episode (or a saved log) to MP4 or GIF", formatter_class=fmt)
+    src = v.add_mutually_exclusive_group(required=True)
+    src.add_argument("--scenario", help="built-in scenario name or scenario TOML path")
+    src.add_argument("--log", help="episode log (.json) to re-run, e.g. from crossing-eval's worst/")
+    v.add_argument("--policy", default="yielding", help="policy when --scenario is given")
+    v.add_argument("--seed", type=_non_negative_int, default=0, help="reset seed when --scenario is given")
+    v.add_argument("--steps", type=_positive_int, default=None, help="stop after this many steps")
+    v.add_argument("--predictor", default=None, help="as for record (drawn on the frames)")
+    v.add_argument(
+        "--intention", default=None, choices=[*sorted(INTENTION_WRAPPERS), "none"], help="as for record"
+    )
+    v.add_argument("--out", required=True, help="output .mp4 (H.264 via imageio-ffmpeg) or .gif")
+    v.add_argument("--fps", type=_positive_int, default=10, help="frames per second of the video")
     return p
+
+
+def _none(value: str | None) -> str | None:
+    """'none' on the command line means: no wrapper (None means: the default choice)."""
+    return "" if value == "none" else value
 
 
 def _record(args: argparse.Namespace) -> int:
@@ -105,8 +161,8 @@ def _record(args: argparse.Namespace) -> int:
         args.seed,
         policy=args.policy,
         max_steps=args.steps,
-        predictor=args.predictor,
-        intention=args.intention,
+        predictor=_none(args.predictor),
+        intention=_none(args.intention),
     )
     if args.save_log:
         save_episode_log(
@@ -115,8 +171,8 @@ def _record(args: argparse.Namespace) -> int:
             seed=args.seed,
             actions=summary.actions,
             policy=args.policy,
-            predictor=summary.predictor,
-            intention=summary.intention,
+            predictor=summary.predictor or None,
+            intention=summary.intention or None,
             final_ground_truth=summary.final_ground_truth,
         )
     print(f"wrote {summary.out}: {summary.steps} steps, {summary.collisions} collision(s)")
@@ -125,7 +181,7 @@ def _record(args: argparse.Namespace) -> int:
 
 def _episode(args: argparse.Namespace) -> int:
     """Replay a log; 1 (with a warning) when the replay differs from it."""
-    summary, match = replay_episode_log(args.log, args.out)
+    summary, match = replay_episode_log(args.log, args.out, without_predictors=args.without_predictors)
     print(f"wrote {summary.out}: {summary.steps} steps, {summary.collisions} collision(s)")
     if match is False:
         print(
@@ -148,6 +204,7 @@ def _scene(args: argparse.Namespace) -> int:
         args.start_frame,
         args.max_frames,
         args.weights,
+        allow_fallback=args.fallback_cvm,
     )
     print(
         f"wrote {sc.out}: {sc.file.name}, {sc.frames} frames, {sc.predictions} predictions, "
@@ -162,7 +219,26 @@ def _screenshot(args: argparse.Namespace) -> int:
     return 0
 
 
+def _video(args: argparse.Namespace) -> int:
+    from crossing_replay.video import record_video  # imageio only for this command
+
+    summary = record_video(
+        args.out,
+        scenario=args.scenario,
+        log=args.log,
+        policy=args.policy,
+        seed=args.seed,
+        max_steps=args.steps,
+        predictor=_none(args.predictor),
+        intention=_none(args.intention),
+        fps=args.fps,
+    )
+    print(f"wrote {summary.out}: {summary.frames} frames at {args.fps} fps")
+    return 0
+
+
 _COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
+    "video": _video,
     "record": _record,
     "episode": _episode,
     "scene": _scene,

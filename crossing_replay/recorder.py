@@ -56,6 +56,13 @@ PED_COLOURS: dict[int, tuple[int, int, int]] = {
 EGO_COLOUR = (0, 230, 255)
 VEHICLE_COLOUR = (235, 235, 235)
 PREDICTION_COLOUR = (230, 70, 230)
+METRIC_PLOTS: tuple[tuple[str, str], ...] = (
+    ("ego_speed", "ego speed (m/s)"),
+    ("ego_acceleration", "ego acceleration (m/s²)"),
+    ("min_distance", "closest pedestrian (m)"),
+    ("ttc", "TTC to a pedestrian (s)"),
+)
+"""Entities under ``/metrics`` and the title (with unit) of each one's own plot."""
 
 
 @contextmanager
@@ -115,9 +122,19 @@ def episode_blueprint(scenario: ScenarioConfig, intention: bool = False) -> Any:
     road = scenario.road
     x = scenario.crossing.position
     margin = road.sidewalk_width + 1.0
-    plots: list[Any] = [rrb.TimeSeriesView(origin="/metrics", name="safety")]
+    # One quantity (one unit) per plot: a shared axis squashed 0-90 m distances against 0-5 s TTCs.
+    plots: list[Any] = [
+        rrb.TimeSeriesView(origin=f"/metrics/{name}", name=title) for name, title in METRIC_PLOTS
+    ]
     if intention:
-        plots.append(rrb.TimeSeriesView(origin="/intention", name="crossing intention"))
+        plots.append(
+            rrb.TimeSeriesView(
+                origin="/intention",
+                name="crossing intention (colour = state)",
+                axis_y=rrb.ScalarAxis(range=(0.0, 1.0)),
+                plot_legend=rrb.PlotLegend(visible=False),
+            )
+        )
     plots.append(rrb.TextLogView(origin="/events", name="events"))
     return rrb.Blueprint(
         rrb.Vertical(
@@ -348,10 +365,10 @@ class EpisodeRecorder:
         rec.log("metrics/ego_speed", rr.Scalars(speed))
         rec.log("metrics/ego_acceleration", rr.Scalars(gt.ego_acceleration))
         dist, ttc = self._safety(gt)
-        if np.isfinite(dist):
-            rec.log("metrics/min_distance", rr.Scalars(dist))
-        if np.isfinite(ttc):
-            rec.log("metrics/ttc", rr.Scalars(ttc))
+        # NaN where undefined (no pedestrian, no closing course): the plotted line breaks there instead
+        # of joining the points on either side of the gap with a straight line.
+        rec.log("metrics/min_distance", rr.Scalars(dist if np.isfinite(dist) else np.nan))
+        rec.log("metrics/ttc", rr.Scalars(ttc if np.isfinite(ttc) else np.nan))
 
     def _log_events(self, gt: GroundTruth) -> None:
         """Collisions (errors) and pedestrian behaviour events (warnings for rule-breaking ones)."""
@@ -414,9 +431,14 @@ class EpisodeRecorder:
         intent = obs.get("crossing_intention")
         if intent is not None and ids.size:
             present = np.flatnonzero(ids[: intent.shape[0]] >= 0)
+            states = {int(i): int(st) for i, st in zip(gt.pedestrian_ids, gt.pedestrian_states, strict=True)}
             for k in present:
                 pid = int(ids[k])
-                self.rec.log(f"intention/ped_{pid}", rr.Scalars(float(intent[k])))
+                # Coloured by the pedestrian's state (as in the scene), not by id: 16 id hues look alike.
+                colour = PED_COLOURS.get(states.get(pid, PedState.INACTIVE), PED_COLOURS[PedState.INACTIVE])
+                self.rec.log(
+                    f"intention/ped_{pid}", rr.Scalars(float(intent[k])), rr.SeriesLines(colors=colour)
+                )
                 self.intention_ids.add(pid)
 
 
@@ -497,12 +519,19 @@ def record_episode(
 
 
 def replay_episode_log(
-    log_path: str | os.PathLike[str], out: str | os.PathLike[str], keep_ground_truth: bool = False
+    log_path: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    keep_ground_truth: bool = False,
+    without_predictors: bool = False,
 ) -> tuple[RecordSummary, bool | None]:
     """Re-run a saved episode into `out`.
 
     The logged actions are replayed, so the predictor wrappers only add what is drawn (predicted paths,
-    intentions); if they cannot be built here, the episode is replayed without them (with a message).
+    intentions). If they cannot be built here that is an error (the recording would silently lack what the
+    policy saw), unless `without_predictors` (``--without-predictors``) asks to replay without them.
+
+    Raises:
+        ReplayError: a bad log, or wrappers that fail to load without `without_predictors`.
 
     Returns:
         The summary, and whether the replay matched the log (None: the log has no digest). A mismatch
@@ -523,6 +552,11 @@ def replay_episode_log(
     except ReplayError as exc:
         if log.predictor is None and log.intention is None:
             raise
+        if not without_predictors:
+            raise ReplayError(
+                f"{log_path}: the episode's predictor wrappers cannot be built here ({exc}); give"
+                " --without-predictors to replay it without them"
+            ) from exc
         print(f"crossing-replay: {exc}; replaying without predictor wrappers", file=sys.stderr)
         summary = record_episode(out, log.scenario, log.seed, **kwargs)
     match = None

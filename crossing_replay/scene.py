@@ -70,6 +70,27 @@ class SceneSlice:
     """(T, P) whether each pedestrian is in each frame."""
 
 
+SCENE_MODELS = ("s-cgru", "s-gru", "s-lstm", "lstm")
+"""Learned models ``scene --model`` accepts (weights ``<model>_<dataset>.pt``)."""
+
+
+def populated_start(path: Path) -> int:
+    """Index of the first frame with at least half the file's peak number of pedestrians.
+
+    The default start of ``scene``: the viewer opens on the first frame, and ETH's first frames are
+    almost empty.
+    """
+    from predictors.data import read_trajectory_file
+
+    try:
+        rows = read_trajectory_file(path)
+    except ValueError as exc:
+        raise ReplayError(str(exc)) from exc
+    _, f_idx = np.unique(rows[:, 0], return_inverse=True)
+    counts = np.bincount(f_idx)
+    return int(np.argmax(counts >= max(1, int(np.ceil(counts.max() / 2))))) if counts.size else 0
+
+
 def _read_slice(path: Path, start_frame: int, max_frames: int | None) -> SceneSlice:
     """Frames ``start_frame`` .. ``start_frame + max_frames − 1`` of a trajectory file."""
     from predictors.data import read_trajectory_file
@@ -108,14 +129,24 @@ class ScenePredictions:
 
 
 def _load_predictor(
-    model: str, dataset: str, weights_dir: str | os.PathLike[str] | None = None
+    model: str,
+    dataset: str,
+    weights_dir: str | os.PathLike[str] | None = None,
+    allow_fallback: bool = False,
 ) -> tuple[Callable[[Any, Any], Any], str]:
     """``(obs, seq_start_end) -> (N, 12, 2)`` and a label saying which predictor it really is.
 
     Learned models use ``<weights_dir>/<model>_<dataset>.pt`` (default ``predictors/weights``; the ETH/UCY
-    checkpoints are trained without that scene, as in ``predictors.evaluate``); when the
-    weights or the predictors package are missing, the constant-velocity model is used and the label says so.
+    checkpoints are trained without that scene, as in ``predictors.evaluate``). An unknown model name is
+    an error; so are missing or unloadable weights, unless `allow_fallback` (``--fallback-cvm``), when the
+    constant-velocity model stands in and the label says so.
+
+    Raises:
+        ReplayError: unknown model, or a learned model that cannot be loaded without `allow_fallback`.
     """
+    known = ("cvm", "kalman", *SCENE_MODELS)
+    if model not in known:
+        raise ReplayError(f"--model {model!r}: unknown; choose from {', '.join(known)}")
     try:
         from predictors.baselines import cvm
     except ImportError:
@@ -140,6 +171,11 @@ def _load_predictor(
             reason = f"no weights {model}_{dataset}.pt"
         except (ImportError, ValueError, FileNotFoundError) as exc:
             reason = f"{model} unavailable: {exc}"
+
+    if not allow_fallback:
+        raise ReplayError(
+            f"--model {model!r}: {reason} (give --fallback-cvm to use constant velocity instead)"
+        )
 
     def constant_velocity(obs: Any, sse: Any) -> Any:
         v = obs[:, -1] - obs[:, -2]
@@ -299,9 +335,9 @@ def _log_scene_frame(
     gt_strips = [np.concatenate([cur[k], fut.positions[i, : fut.length[i]]]) for k, i in enumerate(idx)]
     rec.log("scene/ground_truth", rr.LineStrips2D(gt_strips, radii=0.06, colors=GROUND_TRUTH_COLOUR))
     done = idx[fut.complete[idx]]
-    if done.size:
-        rec.log("metrics/ade", rr.Scalars(float(fut.ade[done].mean())))
-        rec.log("metrics/fde", rr.Scalars(float(fut.fde[done].mean())))
+    # NaN in frames without a complete prediction, so the series breaks there instead of bridging the gap.
+    rec.log("metrics/ade", rr.Scalars(float(fut.ade[done].mean()) if done.size else np.nan))
+    rec.log("metrics/fde", rr.Scalars(float(fut.fde[done].mean()) if done.size else np.nan))
 
 
 @dataclass(frozen=True)
@@ -330,9 +366,10 @@ def record_scene(
     data_root: str | os.PathLike[str] | None = None,
     file: str | None = None,
     model: str = "s-cgru",
-    start_frame: int = 0,
+    start_frame: int | None = None,
     max_frames: int | None = None,
     weights_dir: str | os.PathLike[str] | None = None,
+    allow_fallback: bool = False,
 ) -> SceneSummary:
     """Replay a real recording with predictions (magenta) against the ground-truth futures (green).
 
@@ -342,14 +379,16 @@ def record_scene(
     """
     import rerun as rr
 
+    root = Path(data_root) if data_root is not None else _default_data_root()
+    path = scene_file(root, dataset, file)
+    if start_frame is None:
+        start_frame = populated_start(path)
     if start_frame < 0:
         raise ReplayError(f"--start-frame {start_frame}: must be non-negative")
     if max_frames is not None and max_frames < 1:
         raise ReplayError(f"--max-frames {max_frames}: must be at least 1")
-    root = Path(data_root) if data_root is not None else _default_data_root()
-    path = scene_file(root, dataset, file)
     scene = _read_slice(path, start_frame, max_frames)
-    predictor, label = _load_predictor(model, dataset, weights_dir)
+    predictor, label = _load_predictor(model, dataset, weights_dir, allow_fallback)
     sp = predict_scene(scene.positions, scene.present, predictor)
     fut = _futures(sp, scene.positions, scene.present)
     colours = _track_colours(len(scene.peds))

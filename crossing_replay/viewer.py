@@ -78,6 +78,46 @@ def _wait_for_file(path: str) -> None:
     raise ReplayError("the viewer wrote no screenshot")
 
 
+RRD_MAGIC = b"RRF2"
+"""First bytes of a rerun recording file of the rerun-sdk this project pins."""
+
+
+def verify_recording(path: str | os.PathLike[str], timeout: float = 60.0) -> None:
+    """Check that `path` is a readable rerun recording before a viewer is started on it.
+
+    Checks the magic bytes, then runs the shipped ``rerun rrd verify`` (it decodes every message).
+
+    Raises:
+        ReplayError: missing file, not a recording, or a recording that does not decode.
+    """
+    src = Path(path)
+    if not src.is_file():
+        raise ReplayError(f"recording not found: {src}")
+    with src.open("rb") as fh:
+        head = fh.read(len(RRD_MAGIC))
+    if head != RRD_MAGIC:
+        raise ReplayError(f"{src}: not a rerun recording (starts with {head!r}, expected {RRD_MAGIC!r})")
+    exe = viewer_executable()
+    if exe is None:
+        return
+    env = dict(os.environ, RERUN_ANALYTICS="0")
+    try:
+        proc = subprocess.run(
+            [exe, "rrd", "verify", str(src)],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            env=env,
+            check=False,
+        )
+    except subprocess.TimeoutExpired:
+        raise ReplayError(f"{src}: `rerun rrd verify` did not finish within {timeout:g} s") from None
+    if proc.returncode != 0 or "1 file verified without error" not in proc.stdout + proc.stderr:
+        lines = [ln.strip() for ln in (proc.stderr + proc.stdout).splitlines() if "rror" in ln]
+        why = lines[0] if lines else f"rerun rrd verify exited with {proc.returncode}"
+        raise ReplayError(f"{src}: corrupt recording ({why[:300]})")
+
+
 def screenshot(
     rrd: str | os.PathLike[str],
     out: str | os.PathLike[str],
@@ -96,8 +136,7 @@ def screenshot(
     from rerun.experimental import ViewerClient
 
     src, dst = Path(rrd).resolve(), Path(out)
-    if not src.is_file():
-        raise ReplayError(f"recording not found: {src}")
+    verify_recording(src)
     if dst.suffix != ".png" or not dst.parent.is_dir():
         raise ReplayError(f"--out {str(dst)!r}: must be a .png in an existing folder")
     exe = viewer_executable()

@@ -27,7 +27,9 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from crossing_common.cli import DefaultsHelpFormatter
 from crossing_common.files import atomic_output
+from predictors.checkpoints import CheckpointError, check_weights, is_shipped, update_manifest, verify_shipped
 from predictors.data import (
     SCENES,
     Windows,
@@ -41,6 +43,8 @@ from predictors.models import MODEL_KINDS, ModelConfig, SocialRecurrent, default
 
 CHECKPOINT_FORMAT = "crossing-env/trajectory-predictor/1"
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
+RUNS_DIR = Path("runs")
+"""Default folder (relative to the working directory) of the checkpoints `crossing-train` writes."""
 
 
 @dataclass(frozen=True)
@@ -58,7 +62,9 @@ class TrainConfig:
     data: str = ""
     """Data root with ``eth_ucy/`` and ``sdd/`` (default: ``$CROSSING_DATA`` or ``../shared/data``)."""
     out: str = ""
-    """Checkpoint path (default ``predictors/weights/<model>_<scene>.pt``)."""
+    """Checkpoint path (default: runs/<model>_<scene>.pt); predictors/weights/ needs --force."""
+    force: bool = False
+    """Allow --out to replace a shipped checkpoint (its manifest entry is then updated)."""
     lr: float = 5e-4
     """Adam learning rate."""
     batch_peds: int = 256
@@ -129,14 +135,19 @@ def save_checkpoint(path: Path, model: SocialRecurrent, meta: dict[str, object])
 def load_model(path: str | Path) -> SocialRecurrent:
     """Load a checkpoint written by :func:`save_checkpoint` with ``weights_only=True``.
 
+    A shipped checkpoint must match its sha256 in the manifest, and no checkpoint may hold non-finite or
+    absurdly large weights (`predictors.checkpoints`). Pickles that would run code are refused by
+    ``weights_only=True``.
+
     Raises:
         FileNotFoundError: no such file.
-        ValueError: the file is corrupt, not a predictor checkpoint, or its weights do not fit its config;
-            the message names the file.
+        ValueError: the file is corrupt (checksum, NaN/inf or huge weights: `CheckpointError`), not a
+            predictor checkpoint, or its weights do not fit its config; the message names the file.
     """
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"predictor checkpoint not found: {path}")
+    verify_shipped(path)
     try:
         payload = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as exc:
@@ -157,6 +168,7 @@ def load_model(path: str | Path) -> SocialRecurrent:
     state = payload.get("state_dict")
     if not isinstance(state, dict):
         raise ValueError(f"{path}: field 'state_dict' missing or not a dict")
+    check_weights(state, path)
     try:
         model.load_state_dict({k: v.float() for k, v in state.items()}, strict=True)
     except (RuntimeError, AttributeError) as exc:
@@ -199,6 +211,21 @@ def calibrate_sampling(path: Path, val_w: Windows, num_samples: int = 20, seed: 
     return best_scale
 
 
+def output_path(cfg: TrainConfig) -> Path:
+    """Where `train` writes: ``--out`` or ``runs/<model>_<scene>.pt``; never a shipped file without --force.
+
+    Raises:
+        ValueError: ``--out`` names a shipped checkpoint and ``--force`` is not given.
+    """
+    out = Path(cfg.out) if cfg.out else RUNS_DIR / f"{cfg.model}_{cfg.scene}.pt"
+    if is_shipped(out) and not cfg.force:
+        raise ValueError(
+            f"--out {out} would replace a shipped checkpoint (the env's wrappers load these); give another"
+            " path, or --force to replace it and update its manifest entry"
+        )
+    return out
+
+
 def train(cfg: TrainConfig) -> Path:
     """Train one model; return the checkpoint path. Model selection on val ADE only."""
     if cfg.model not in MODEL_KINDS:
@@ -214,7 +241,7 @@ def train(cfg: TrainConfig) -> Path:
     rng = np.random.default_rng(cfg.seed)
     root = Path(cfg.data) if cfg.data else default_data_root()
     train_w, val_w = load_training_data(root, cfg.scene)
-    out = Path(cfg.out) if cfg.out else WEIGHTS_DIR / f"{cfg.model}_{cfg.scene}.pt"
+    out = output_path(cfg)
     mcfg = replace(
         default_config(cfg.model, cfg.fov_deg),
         hidden_size=cfg.hidden_size,
@@ -283,6 +310,8 @@ def train(cfg: TrainConfig) -> Path:
     )
     save_checkpoint(out, final, meta)
     scale = calibrate_sampling(out, val_w)
+    if is_shipped(out):
+        update_manifest([out.name])
     print(f"saved {out} (best epoch {best_epoch}, val ADE/FDE {best[0]:.3f}/{best[1]:.3f}), scale {scale}")
     return out
 
@@ -304,17 +333,26 @@ def _field_docs(cls: type) -> dict[str, str]:
 
 def parse_args(argv: list[str] | None = None) -> TrainConfig:
     """Parse command-line arguments into a :class:`TrainConfig` (help texts are the fields' docstrings)."""
-    p = argparse.ArgumentParser(prog="crossing-train", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(
+        prog="crossing-train",
+        description=__doc__.splitlines()[0].replace("``", ""),
+        epilog=f"models: {', '.join(MODEL_KINDS)}; scenes: {', '.join((*SCENES, 'sdd', 'all'))}",
+        formatter_class=DefaultsHelpFormatter,
+    )
     d = TrainConfig()
     docs = _field_docs(TrainConfig)
+    choices = {"model": MODEL_KINDS, "scene": (*SCENES, "sdd", "all")}
     for f in fields(TrainConfig):
         default = getattr(d, f.name)
-        p.add_argument(
-            f"--{f.name.replace('_', '-')}",
-            type=type(default),
-            default=default,
-            help=f"{docs.get(f.name, '')} (default: {default})".replace("%", "%%"),
-        )
+        text = docs.get(f.name, "").replace("``", "").replace("%", "%%")
+        flag = f"--{f.name.replace('_', '-')}"
+        if isinstance(default, bool):
+            p.add_argument(flag, action="store_true", help=text)
+        else:
+            # Choices shown, checked by `train` (exit 2 with the value named, like every other bad value).
+            names = choices.get(f.name)
+            metavar = "{" + ",".join(names) + "}" if names else None
+            p.add_argument(flag, type=type(default), default=default, metavar=metavar, help=text)
     return TrainConfig(**vars(p.parse_args(argv)))
 
 
@@ -323,7 +361,7 @@ def main(argv: list[str] | None = None) -> int:
     cfg = parse_args(argv)
     try:
         train(cfg)
-    except (ValueError, FileNotFoundError) as exc:
+    except (ValueError, FileNotFoundError, CheckpointError) as exc:
         print(f"crossing-train: error: {exc}", file=sys.stderr)
         return 2
     return 0

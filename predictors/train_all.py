@@ -20,6 +20,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import replace
 from pathlib import Path
 
+from predictors.checkpoints import is_shipped, update_manifest
 from predictors.data import SCENES
 from predictors.models import MODEL_KINDS
 from predictors.train import WEIGHTS_DIR, TrainConfig, checkpoint_meta, train
@@ -48,7 +49,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--scenes", default=",".join((*SCENES, "sdd")), help="comma list of training scenes")
     p.add_argument("--jobs", type=int, default=2, help="runs at once (one torch thread each)")
     p.add_argument("--minutes", type=float, default=TrainConfig.max_minutes, help="budget of each run")
-    p.add_argument("--out-dir", default=str(WEIGHTS_DIR), help="where the checkpoints go")
+    p.add_argument(
+        "--out-dir", default="runs/train_all/weights", help="where the checkpoints go (default: %(default)s)"
+    )
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help=f"allow --out-dir to be the shipped {WEIGHTS_DIR} (replaces those files, updates the manifest)",
+    )
     p.add_argument("--log-dir", default="runs/train_all", help="where each run's log goes")
     p.add_argument("--data", default="", help="data root (default $CROSSING_DATA or ../shared/data)")
     p.add_argument("--hidden-size", type=int, default=TrainConfig.hidden_size)
@@ -77,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
         threads=1,
     )
     runs = {
-        f"{m}_{s}": replace(base, model=m, scene=s, out=str(out_dir / f"{m}_{s}.pt"))
+        f"{m}_{s}": replace(base, model=m, scene=s, out=str(out_dir / f"{m}_{s}.pt"), force=a.force)
         for s in scenes
         for m in models
     }
@@ -98,6 +106,9 @@ def main(argv: list[str] | None = None) -> int:
         print("interrupted: runs not yet started were cancelled", file=sys.stderr)
         return 130
     pool.shutdown()
+    if is_shipped(out_dir / "x.pt"):
+        # Runs in parallel processes each updated their own entry; one final pass leaves no lost update.
+        update_manifest([p.name for p in sorted(out_dir.glob("*.pt"))])
     return 1 if failed else 0
 
 

@@ -399,7 +399,7 @@ def test_scene_replay_small_slice(tmp_path: Path, model: str, tiny_weights: Path
 
 
 def test_constant_velocity_fallback_extrapolates() -> None:
-    predict, label = _load_predictor("no-such-model", "eth", "/nonexistent")
+    predict, label = _load_predictor("s-cgru", "eth", "/nonexistent", allow_fallback=True)
     assert "constant velocity" in label
     obs = np.stack([np.stack([np.arange(8.0), 2 * np.arange(8.0)], axis=1)]).astype(np.float32)
     out = np.asarray(predict(obs, None))

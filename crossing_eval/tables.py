@@ -1,0 +1,114 @@
+"""The per scenario x policy report: ``report.md`` (pooled and per-scenario tables) and its CSV rows.
+
+The printed table pools every scenario per policy; the scenario x policy numbers are what a reader
+compares policies on, so they get their own table. Custom scenario files are named by the scenario's
+``name`` field, not their path. Missing values are one convention everywhere: "-" in text and Markdown,
+an empty cell in CSV, ``null`` in JSON.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from crossing_eval.report import TABLE_COLUMNS, _row
+from scenarios import load_scenario
+
+SCENARIO_CSV_FIELDS = (
+    "episodes",
+    "collision_rate",
+    "pedestrian_collision_rate",
+    "min_ttc_p5",
+    "min_ttc_p50",
+    "serious_conflict_rate",
+    "pet_pedestrian_first_p5",
+    "drac_crossing_mean",
+    "hard_brakes_per_episode",
+    "yield_obligations",
+    "yield_compliance",
+    "pass_rate",
+    "mean_delay",
+    "censored_mean_delay",
+    "censored_episodes",
+)
+"""Columns of ``per_scenario.csv`` after scenario and policy (keys of the aggregates), then the CI."""
+
+
+def scenario_labels(scenarios: Sequence[str]) -> dict[str, str]:
+    """Display name of each scenario argument: its ``name`` field, or the argument when names clash."""
+    names = {s: load_scenario(s).name or Path(s).stem for s in scenarios}
+    counts: dict[str, int] = {}
+    for n in names.values():
+        counts[n] = counts.get(n, 0) + 1
+    return {s: (n if counts[n] == 1 else s) for s, n in names.items()}
+
+
+def csv_cell(x: Any) -> Any:
+    """One CSV cell: missing or undefined (None, nan) → empty, ±inf → "inf"/"-inf", else the value."""
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return ""
+    if isinstance(x, float) and math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    return x
+
+
+def per_scenario_rows(
+    summary: Mapping[str, Any], labels: Mapping[str, str], policies: Sequence[str]
+) -> tuple[list[str], list[list[Any]]]:
+    """Header and rows of ``per_scenario.csv``: one row per (scenario, policy), in label then policy order."""
+    header = ["scenario", "policy", *SCENARIO_CSV_FIELDS, "collision_ci95_low", "collision_ci95_high"]
+    rows = []
+    for scenario, policy, agg in _pairs(summary, labels, policies):
+        lo, hi = agg["collision_ci95"]
+        rows.append([scenario, policy, *(csv_cell(agg[k]) for k in SCENARIO_CSV_FIELDS), lo, hi])
+    return header, rows
+
+
+def _pairs(
+    summary: Mapping[str, Any], labels: Mapping[str, str], policies: Sequence[str]
+) -> list[tuple[str, str, dict[str, Any]]]:
+    out = []
+    for key, agg in summary["per_scenario_policy"].items():
+        scenario, policy = key.rsplit("/", 1)
+        out.append((labels.get(scenario, scenario), policy, agg))
+    order = {p: i for i, p in enumerate(policies)}
+    return sorted(out, key=lambda t: (t[0], order.get(t[1], len(order)), t[1]))
+
+
+def _markdown(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    esc = [[c.replace("|", "\\|") for c in r] for r in (header, *rows)]
+    lines = ["| " + " | ".join(esc[0]) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    lines.extend("| " + " | ".join(r) + " |" for r in esc[1:])
+    return "\n".join(lines)
+
+
+def report_markdown(
+    summary: Mapping[str, Any],
+    policies: Sequence[str],
+    labels: Mapping[str, str],
+    settings: Mapping[str, Any],
+) -> str:
+    """``report.md``: the settings, the pooled table and one table per scenario (rows: policies)."""
+    header = [c for c, _ in TABLE_COLUMNS]
+    pooled = [_row(p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]]
+    pooled.append(_row("overall", summary["overall"]))
+    parts = [
+        "# crossing-eval report",
+        "",
+        f"{settings.get('episodes')} episode(s) per scenario and policy, base seed {settings.get('seed')},"
+        f" predictor {settings.get('predictor')}, intention {settings.get('intention')}.",
+        "Collision rates with 95% Wilson intervals; min TTC percentiles over episode minima; the delay"
+        " counts episodes that never pass at the scenario's duration (censored); '-' = undefined.",
+        "",
+        "## All scenarios pooled",
+        "",
+        _markdown(header, pooled),
+    ]
+    by_scenario: dict[str, list[list[str]]] = {}
+    for scenario, policy, agg in _pairs(summary, labels, policies):
+        by_scenario.setdefault(scenario, []).append(_row(policy, agg))
+    for scenario, rows in by_scenario.items():
+        parts += ["", f"## {scenario}", "", _markdown(header, rows)]
+    return "\n".join(parts) + "\n"

@@ -1,0 +1,157 @@
+"""crossing-replay hardening and video (issue 16): clear errors, no silent fallbacks, MP4/GIF, rerun plots."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rerun")
+from crossing_replay.cli import main
+from crossing_replay.episode_log import save_episode_log
+from crossing_replay.errors import ReplayError
+from crossing_replay.recorder import record_episode
+from crossing_replay.scene import _load_predictor
+from crossing_replay.viewer import verify_recording
+from tests.crossing_replay.test_replay import read_rrd
+
+
+@pytest.fixture(scope="module")
+def small_rrd(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("rrd") / "ep.rrd"
+    record_episode(out, "busy_zebra", seed=2, policy="constant", max_steps=25)
+    return out
+
+
+def test_corrupt_recordings_are_refused_before_a_viewer_starts(small_rrd: Path, tmp_path: Path, capsys):
+    verify_recording(small_rrd)
+    data = bytearray(small_rrd.read_bytes())
+    mid = len(data) // 2
+    data[mid : mid + 64] = bytes(b ^ 0xFF for b in data[mid : mid + 64])
+    flipped, garbage = tmp_path / "flipped.rrd", tmp_path / "garbage.rrd"
+    flipped.write_bytes(bytes(data))
+    garbage.write_bytes(b"not a recording at all")
+    for bad, needle in ((flipped, "corrupt recording"), (garbage, "not a rerun recording")):
+        assert main(["screenshot", str(bad), "--out", str(tmp_path / "shot.png")]) == 2
+        err = capsys.readouterr().err
+        assert needle in err and str(bad) in err and err.count("\n") == 1
+    assert not (tmp_path / "shot.png").exists()
+
+
+def test_rerun_metrics_have_one_unit_per_plot_and_break_at_gaps(small_rrd: Path):
+    data = read_rrd(small_rrd)
+    ttc = [r["Scalars:scalars"][0] for r in data["/metrics/ttc"]]
+    steps = len(data["/metrics/ego_speed"])
+    assert len(ttc) == steps  # one value per frame: NaN where undefined, so the line breaks there
+    assert any(math.isnan(v) for v in ttc) or all(math.isfinite(v) for v in ttc)
+    from crossing_replay.recorder import METRIC_PLOTS, episode_blueprint
+    from scenarios import load_scenario
+
+    assert {name for name, _ in METRIC_PLOTS} == {"ego_speed", "ego_acceleration", "min_distance", "ttc"}
+    assert all("(" in title for _, title in METRIC_PLOTS)  # each plot names its unit
+    episode_blueprint(load_scenario("busy_zebra"), intention=True)  # builds with rerun's blueprint API
+
+
+def test_scene_model_errors_instead_of_silent_fallback():
+    with pytest.raises(ReplayError, match="unknown"):
+        _load_predictor("foo", "eth")
+    with pytest.raises(ReplayError, match="--fallback-cvm"):
+        _load_predictor("s-cgru", "eth", "/nonexistent")
+    _, label = _load_predictor("s-cgru", "eth", "/nonexistent", allow_fallback=True)
+    assert "fallback" in label
+    with pytest.raises(SystemExit) as exc:
+        main(["scene", "--dataset", "eth", "--model", "foo", "--out", "x.rrd"])
+    assert exc.value.code == 2
+
+
+def test_episode_whose_predictor_fails_is_an_error_unless_opted_out(tmp_path: Path, capsys):
+    log = tmp_path / "ep.json"
+    save_episode_log(
+        log,
+        scenario="zebra_case1",
+        seed=0,
+        actions=np.zeros((5, 1), np.float32),
+        policy="constant",
+        predictor=str(tmp_path / "missing.pt"),
+    )
+    out = tmp_path / "ep.rrd"
+    assert main(["episode", str(log), "--out", str(out)]) == 2
+    assert "--without-predictors" in capsys.readouterr().err
+    assert not out.exists()
+    assert main(["episode", str(log), "--out", str(out), "--without-predictors"]) in (0, 1)
+    assert out.is_file()
+
+
+def test_record_accepts_intention_none(tmp_path: Path):
+    out = tmp_path / "r.rrd"
+    argv = ["record", "--scenario", "zebra_case1", "--policy", "yielding", "--steps", "3"]
+    assert main([*argv, "--predictor", "none", "--intention", "none", "--out", str(out)]) == 0
+    assert not any(e.startswith("/intention") for e in read_rrd(out))
+
+
+@pytest.mark.parametrize("suffix", [".gif", ".mp4"])
+def test_video_writes_every_frame(tmp_path: Path, suffix: str):
+    iio = pytest.importorskip("imageio.v3")
+    if suffix == ".mp4":
+        pytest.importorskip("imageio_ffmpeg")
+    out = tmp_path / f"ep{suffix}"
+    argv = ["video", "--scenario", "busy_zebra", "--policy", "constant_speed", "--steps", "7"]
+    assert main([*argv, "--predictor", "cvm", "--intention", "none", "--out", str(out)]) == 0
+    frames = iio.imread(out, index=None)
+    assert frames.shape[0] == 8 and frames.shape[-1] == 3
+    assert [p.name for p in tmp_path.iterdir()] == [out.name]
+
+
+def test_video_refuses_an_unknown_format(tmp_path: Path, capsys):
+    assert main(["video", "--scenario", "busy_zebra", "--out", str(tmp_path / "ep.avi")]) == 2
+    assert ".mp4 or .gif" in capsys.readouterr().err
+
+
+def test_gymnasium_record_video_works(tmp_path: Path):
+    pytest.importorskip("moviepy")
+    import gymnasium as gym
+    from gymnasium.wrappers import RecordVideo
+
+    from crossing_env import ENV_ID
+
+    env = gym.make(ENV_ID, scenario="zebra_case1", render_mode="rgb_array")
+    env = RecordVideo(env, str(tmp_path / "videos"), episode_trigger=lambda e: True, disable_logger=True)
+    env.reset(seed=0)
+    for _ in range(5):
+        env.step(np.array([0.0], np.float32))
+    env.close()
+    assert [p.suffix for p in (tmp_path / "videos").iterdir()] == [".mp4"]
+
+
+def test_scene_opens_on_a_populated_frame(tmp_path: Path):
+    pytest.importorskip("predictors.data")
+    from crossing_replay.scene import populated_start
+
+    lines = []
+    for f in range(20):
+        crowd = 1 if f < 7 else 4  # nearly empty at first, as ETH's first frames
+        lines += [f"{f * 10}\t{p + 1}.0\t{0.4 * f:.2f}\t{p:.2f}" for p in range(crowd)]
+    path = tmp_path / "scene.txt"
+    path.write_text("\n".join(lines) + "\n")
+    assert populated_start(path) == 7
+
+
+def test_intention_series_are_coloured_by_state(tmp_path: Path):
+    pytest.importorskip("predictors.intention")
+    from crossing_replay.recorder import PED_COLOURS
+
+    out = tmp_path / "i.rrd"
+    argv = ["record", "--scenario", "busy_zebra", "--policy", "constant", "--steps", "15"]
+    assert main([*argv, "--predictor", "none", "--intention", "classical", "--out", str(out)]) == 0
+    data = read_rrd(out)
+    colours = {
+        int(c)
+        for e, rows in data.items()
+        if e.startswith("/intention/")
+        for r in rows
+        for c in (r.get("SeriesLines:colors") or [])
+    }
+    packed = {(r << 24) | (g << 16) | (b << 8) | 255 for r, g, b in PED_COLOURS.values()}
+    assert colours and colours <= packed

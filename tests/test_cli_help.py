@@ -1,0 +1,43 @@
+"""CLI help (issue 16): defaults and choices shown, no reStructuredText markup, no empty defaults."""
+
+from __future__ import annotations
+
+import pytest
+
+from crossing_eval.cli import build_parser as eval_parser
+from crossing_replay.cli import build_parser as replay_parser
+
+
+def _help(parser, argv: list[str], capsys) -> str:
+    with pytest.raises(SystemExit):
+        parser.parse_args([*argv, "--help"])
+    return capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("name", "argv", "needles"),
+    [
+        ("eval", [], ["(default: 5)", "(default: 2024)", "(default: s-cgru)", "yielding"]),
+        ("replay", ["record"], ["(default: constant)", "{classical,qlb,none}"]),
+        ("replay", ["scene"], ["which recording set", "(default: s-cgru)", "--fallback-cvm"]),
+        ("replay", ["screenshot"], ["(default: 9877)", "(default: 500)"]),
+        ("replay", ["video"], ["(default: 10)", ".mp4", ".gif"]),
+        ("replay", ["episode"], ["--without-predictors"]),
+    ],
+)
+def test_help_shows_defaults_and_no_markup(name, argv, needles, capsys):
+    parser = eval_parser() if name == "eval" else replay_parser()
+    text = _help(parser, argv, capsys)
+    for needle in needles:
+        assert needle in " ".join(text.split()), needle
+    assert "``" not in text and "(default: )" not in text and "(default: None)" not in text
+
+
+def test_train_help_lists_models_and_scenes(capsys):
+    from predictors.train import parse_args
+
+    with pytest.raises(SystemExit):
+        parse_args(["--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "{s-cgru,s-gru,s-lstm,lstm}" in text and "zara2" in text and "(default: 20)" in text
+    assert "``" not in text and "(default: )" not in text
