@@ -71,8 +71,13 @@ class RoadGeometry:
         self.lane_direction = np.array([1.0 if i < n_fwd else -1.0 for i in range(road.num_lanes)])
         self.kerb_south = 0.0
         self.kerb_north = float(road.road_width)
-        self.sidewalk_south = Rect(0.0, road.length, -road.sidewalk_width, 0.0)
+        strip = road.parking_strip
+        self.parking_strip = Rect(0.0, road.length, -strip, 0.0)
+        """The parking strip along the south kerb (empty when the road has none)."""
+        self.sidewalk_south = Rect(0.0, road.length, -strip - road.sidewalk_width, -strip)
         self.sidewalk_north = Rect(0.0, road.length, road.road_width, road.road_width + road.sidewalk_width)
+        self.walkway_bounds = (self.sidewalk_south.y_min, self.sidewalk_north.y_max)
+        """(south, north) outer edges of the walkways (building lines): nobody walks beyond them."""
         half = crossing.width / 2
         self.has_crossing = crossing.kind != "none"
         self.crossing_rect = Rect(crossing.position - half, crossing.position + half, 0.0, road.road_width)

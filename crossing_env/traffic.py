@@ -18,8 +18,18 @@ from scenarios.config import IDMConfig, ScenarioConfig, VehicleSpawn
 
 ENTRY_CLEARANCE = 20.0
 """A new car enters only if the nearest car in its lane is farther than this from the entry (m)."""
-PEDESTRIAN_LOOKAHEAD = 40.0
+PEDESTRIAN_LOOKAHEAD = 50.0
 """Drivers react to pedestrians on the carriageway within this distance ahead (m)."""
+PATH_MARGIN = 1.5
+"""Seconds: a driver brakes for a crossing pedestrian who will reach its lane before, or up to this long
+after, the car has passed the pedestrian's line (design choice: a reaction time plus a little)."""
+ASSUMED_WALK_SPEED = 1.4
+"""Lateral speed (m/s) a driver assumes for a crossing pedestrian who is walking slower (hesitating)."""
+YIELD_DECELERATION = 3.0
+"""Deceleration (m/s²) a yielding driver accepts to stop for a zebra: "can stop comfortably" (rule 195 /
+StVO §26); the same figure as `MetricsConfig.yield_deceleration`."""
+CROSSING_STATE = 3
+"""`PedState.CROSSING` as a plain int for the kernel."""
 
 
 # ---------------------------------------------------------------------- car following
@@ -144,14 +154,15 @@ class Traffic:
 
     # ------------------------------------------------------------------ geometry helpers
     def _place_laterally(self, i: int) -> None:
-        """Centre y and direction of slot i from its highway-env lane (parked: the strip by the south kerb).
+        """Centre y and direction of slot i from its highway-env lane (parked: the parking strip's middle).
 
         Done once per spawn: vehicles keep their lanes, so the hot path only reads the cached `y` and
         `direction` arrays.
         """
         self.direction[i] = self.geometry.lane_direction[self.lane[i]]
         if self.parked[i]:
-            self.y[i] = self.geometry.kerb_south - self.width[i] / 2 - 0.1
+            strip = self.geometry.parking_strip
+            self.y[i] = (strip.y_min + strip.y_max) / 2
         else:
             self.y[i] = self.geometry.lane_y[self.lane[i]]
 
@@ -171,9 +182,9 @@ class Traffic:
         """(k, 4) axis-aligned boxes [x_min, y_min, x_max, y_max] of the selected (default: active) slots."""
         return _boxes(self.x, self.y, self.length, self.width, self.active if mask is None else mask)
 
-    def moving(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """(x, direction, speed, half length) of the active, not parked slots, in slot order."""
-        return _moving(self.x, self.direction, self.speed, self.length, self.active, self.parked)
+    def moving(self) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, np.ndarray]:
+        """(x, direction, speed, half length, lane) of the active, not parked slots, in slot order."""
+        return _moving(self.x, self.direction, self.speed, self.length, self.lane, self.active, self.parked)
 
     # ------------------------------------------------------------------ spawning
     def spawn(self, spawn: VehicleSpawn) -> int | None:
@@ -222,6 +233,10 @@ class Traffic:
         ped_on_road: np.ndarray,
         pedestrians_at_zebra: bool,
         cars_must_stop: bool,
+        ped_velocities: FloatArray | None = None,
+        ped_state: np.ndarray | None = None,
+        ped_target_y: FloatArray | None = None,
+        ped_radius: FloatArray | None = None,
     ) -> FloatArray:
         """IDM accelerations of all slots (the ego's entry is ignored by the caller).
 
@@ -230,7 +245,21 @@ class Traffic:
             ped_on_road: (P,) those on the carriageway (obstacles in their lane).
             pedestrians_at_zebra: someone waits at the kerb of the crossing or is on it.
             cars_must_stop: the signal shows red to cars.
+            ped_velocities: (P, 2) velocities (default: standing).
+            ped_state: (P,) `PedState` codes: crossing pedestrians still on the kerb count as in the road.
+            ped_target_y: (P,) y each pedestrian walks towards (default: where it stands): a driver
+                brakes for one whose path will cross its lane before it has passed.
+            ped_radius: (P,) body radii (default 0.25 m).
         """
+        p = ped_positions.shape[0]
+        if ped_velocities is None:
+            ped_velocities = np.zeros((p, 2))
+        if ped_state is None:
+            ped_state = np.zeros(p, dtype=np.int64)
+        if ped_target_y is None:
+            ped_target_y = np.ascontiguousarray(ped_positions[:, 1])
+        if ped_radius is None:
+            ped_radius = np.full(p, 0.25)
         # Stop line: red signal for everyone, pedestrians at the zebra for yielders.
         yield_now = self.scenario.crossing.kind == "zebra" and pedestrians_at_zebra
         stop_lines = self.geometry.has_crossing and (cars_must_stop or yield_now)
@@ -245,7 +274,11 @@ class Traffic:
             self.parked,
             self.yields,
             ped_positions,
+            ped_velocities,
             ped_on_road,
+            ped_state,
+            ped_target_y,
+            ped_radius,
             bool(stop_lines),
             bool(cars_must_stop),
             *self._road_constants,
@@ -289,7 +322,11 @@ def _background_accelerations(
     parked: np.ndarray,
     yields: np.ndarray,
     ped_positions: FloatArray,
+    ped_velocities: FloatArray,
     ped_on_road: np.ndarray,
+    ped_state: np.ndarray,
+    ped_target_y: FloatArray,
+    ped_radius: FloatArray,
     stop_lines: bool,
     everyone_stops: bool,
     lane_width: float,
@@ -298,14 +335,18 @@ def _background_accelerations(
     stop_x_backward: float,
     idm: tuple[float, float, float, float, float, float],
 ) -> FloatArray:
-    """Per slot: the nearest obstacle ahead (leader in lane, pedestrian on the road, stop line), then IDM.
+    """Per slot: the nearest obstacle ahead (leader in lane, pedestrian in its path, stop line), then IDM.
 
     Positions are measured along each car's own travel direction (`s = x · direction`); parked and free
     slots get 0. Ties between equally close leaders go to the lower slot.
+
+    A pedestrian is in a car's path when it is on the carriageway (or has just started crossing) and its
+    body covers the car's lane, or its walk towards its target will bring it into the lane before the car
+    has passed its line (plus `PATH_MARGIN`). Every driver, yielder or not, treats such a pedestrian as a
+    standing obstacle; IDM then brakes up to the maximum deceleration.
     """
     n = x.shape[0]
     acc = np.zeros(n)
-    braking = idm[2] * 0.6  # a share of the maximum deceleration
     for i in range(n):
         if not active[i] or parked[i]:
             continue
@@ -322,19 +363,35 @@ def _background_accelerations(
                 bumper = ahead - half - length[j] / 2
                 if bumper < gap:
                     gap, lead_speed = bumper, speed[j]
-        # Pedestrians on the carriageway in the car's lane ahead.
+        # Pedestrians in the car's path ahead.
+        lane_lo, lane_hi = lane[i] * lane_width, (lane[i] + 1) * lane_width
         for k in range(ped_positions.shape[0]):
-            if not ped_on_road[k]:
+            if not (ped_on_road[k] or ped_state[k] == CROSSING_STATE):
                 continue
-            ped_lane = min(max(int(ped_positions[k, 1] / lane_width), 0), num_lanes - 1)
-            dist = ped_positions[k, 0] * d - s - half - 0.5
-            if ped_lane == lane[i] and -half < dist < PEDESTRIAN_LOOKAHEAD:
+            r = ped_radius[k]
+            dist = ped_positions[k, 0] * d - s - half - r
+            if not (-half - 2 * r < dist < PEDESTRIAN_LOOKAHEAD):
+                continue
+            y, ty = ped_positions[k, 1], ped_target_y[k]
+            if y + r > lane_lo and y - r < lane_hi:
+                in_path = True  # in the lane now
+            elif min(y, ty) - r < lane_hi and max(y, ty) + r > lane_lo:
+                # Will walk into the lane: when, at its lateral speed (or a brisk walk if it is slower)?
+                lateral = lane_lo - (y + r) if ty > y else (y - r) - lane_hi
+                towards = ped_velocities[k, 1] if ty > y else -ped_velocities[k, 1]
+                t_ped = max(lateral, 0.0) / max(towards, ASSUMED_WALK_SPEED)
+                t_pass = (dist + length[i] + 2 * r) / max(speed[i], 0.1)
+                in_path = t_ped < t_pass + PATH_MARGIN
+            else:
+                in_path = False
+            if in_path:
                 ped_gap = max(dist, 0.01)
                 if ped_gap < gap:
                     gap, lead_speed = ped_gap, 0.0
         if stop_lines and (everyone_stops or yields[i]):
             stop_s = stop_x_forward if d > 0 else -stop_x_backward
             to_line = stop_s - (s + half)
+            braking = YIELD_DECELERATION if not everyone_stops else idm[2] * 0.6
             can_stop = to_line > speed[i] ** 2 / (2 * braking) or (to_line > -0.5 and speed[i] < 1.0)
             line_gap = max(to_line, 0.01)
             if can_stop and to_line > -1.0 and line_gap < gap:
@@ -363,12 +420,13 @@ def _moving(
     direction: FloatArray,
     speed: FloatArray,
     length: FloatArray,
+    lane: np.ndarray,
     active: np.ndarray,
     parked: np.ndarray,
-) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, np.ndarray]:
     """`Traffic.moving` without a numpy call per field."""
     rows = np.flatnonzero(active & ~parked)
-    return x[rows], direction[rows], speed[rows], length[rows] / 2
+    return x[rows], direction[rows], speed[rows], length[rows] / 2, lane[rows]
 
 
 @njit(cache=True, nogil=True)

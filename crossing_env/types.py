@@ -122,7 +122,13 @@ class GroundTruth:
     pedestrian_states: IntArray
     """(P,) `PedState` codes."""
     intends_to_cross: BoolArray
-    """(P,) whether the pedestrian means to cross the road (hidden intention)."""
+    """(P,) whether the pedestrian means to cross the road (hidden intention); False for bystanders."""
+    intent_decided_at: FloatArray
+    """(P,) simulation time (s) at which the pedestrian's current intent (to cross or not) was decided: its
+    spawn time for a plan fixed at spawn, the time of a change of mind otherwise; NaN if undecided."""
+    is_bystander: BoolArray
+    """(P,) a bystander near the crossing with no intent to cross: walking past along the sidewalk,
+    waiting at a bus stop or shop front by the kerb, or in a group talking at the corner."""
     on_crossing: BoolArray
     """(P,) pedestrian centre inside the zebra area (on the carriageway)."""
     on_road: BoolArray

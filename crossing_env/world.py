@@ -73,13 +73,14 @@ class World:
 
     # ------------------------------------------------------------------ stepping
     def _car_snapshot(self) -> CarSnapshot:
-        x, direction, speed, half_length = self.traffic.moving()
+        x, direction, speed, half_length, lane = self.traffic.moving()
         return CarSnapshot(
             x=x,
             direction=direction,
             speed=speed,
             half_length=half_length,
             boxes=self.traffic.boxes(),
+            lane=lane,
         )
 
     def step(self, ego_acceleration: float) -> None:
@@ -92,7 +93,16 @@ class World:
         # Background drivers: obstacles are pedestrians on the road, at the kerb, or on the zebra
         # (positions have not moved since the masks were refreshed at the end of the last step).
         at_zebra = peds.anyone_at_zebra(self.ped_on_crossing)
-        acc = tr.background_accelerations(peds.position, self.ped_on_road, at_zebra, green is True)
+        acc = tr.background_accelerations(
+            peds.position,
+            self.ped_on_road,
+            at_zebra,
+            green is True,
+            peds.velocity,
+            peds.state,
+            np.ascontiguousarray(peds.waypoint[:, 1]),
+            peds.radius,
+        )
         acc[0] = ego_acceleration
         # Kinematic bodies move by velocity: use the mean velocity of the step so pymunk ends where we do.
         start_positions, vel = tr.advance(acc, dt, self.scenario.ego.max_speed)
@@ -107,6 +117,9 @@ class World:
             act,
             dt,
             self.config.max_substep_displacement,
+        )
+        _keep_on_walkways(
+            peds.position, peds.velocity, peds.radius, peds.state, *self.geometry.walkway_bounds
         )
         self._refresh_masks()
         self._record_contacts(contacts)
@@ -181,6 +194,8 @@ class World:
             pedestrian_radii=peds.radius[act].copy(),
             pedestrian_states=peds.state[act].copy(),
             intends_to_cross=peds.intends[act].copy(),
+            intent_decided_at=peds.intent_time[act].copy(),
+            is_bystander=peds.bystander[act].copy(),
             on_crossing=self.ped_on_crossing[act],
             on_road=self.ped_on_road[act],
             waiting=(peds.state[act] == WAITING),
@@ -203,6 +218,32 @@ class World:
 def _resized(state: np.ndarray, body_radius: FloatArray, radius: FloatArray) -> np.ndarray:
     """Active pool slots whose body radius differs from the one their physics circle was given."""
     return np.flatnonzero((state != 0) & (np.abs(body_radius - radius) > 1e-9))
+
+
+@njit(cache=True, nogil=True)
+def _keep_on_walkways(
+    position: FloatArray,
+    velocity: FloatArray,
+    radius: FloatArray,
+    state: np.ndarray,
+    south: float,
+    north: float,
+) -> None:
+    """The building lines: bodies pushed past a walkway's outer edge are put back against it (in place).
+
+    A crowd or a car can push a pedestrian outwards; its outward velocity is removed as well. A static
+    pymunk wall would do the same, but with one, runs with the same seed differed in the last bits.
+    """
+    for i in range(state.shape[0]):
+        if state[i] == 0:
+            continue
+        lo, hi = south + radius[i], north - radius[i]
+        if position[i, 1] < lo:
+            position[i, 1] = lo
+            velocity[i, 1] = max(velocity[i, 1], 0.0)
+        elif position[i, 1] > hi:
+            position[i, 1] = hi
+            velocity[i, 1] = min(velocity[i, 1], 0.0)
 
 
 @njit(cache=True, nogil=True)

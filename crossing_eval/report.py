@@ -89,7 +89,7 @@ def _row(name: str, agg: dict[str, Any]) -> list[str]:
 
 
 def format_table(summary: dict[str, Any], policies: Sequence[str]) -> str:
-    """Fixed-width text table: one row per policy plus 'overall'."""
+    """Fixed-width text table: one row per policy plus 'overall', then the world-health line."""
     rows = [[c for c, _ in TABLE_COLUMNS]]
     entries = [(p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]]
     entries.append(("overall", summary["overall"]))
@@ -105,4 +105,17 @@ def format_table(summary: dict[str, Any], policies: Sequence[str]) -> str:
         )
         if i == 0:
             lines.append("  ".join("-" * w for w in widths))
+    lines.append(format_world_health(summary))
     return "\n".join(lines)
+
+
+def format_world_health(summary: dict[str, Any]) -> str:
+    """One line on the world around the ego: background car–pedestrian contacts (the ego is not involved)."""
+    agg = summary["overall"]
+    lo, hi = agg["background_collision_ci95"]
+    return (
+        f"world health: {agg['background_collisions']} background car-pedestrian contact(s)"
+        f" ({agg['background_collisions_legal']} with a legal pedestrian) in {agg['episodes']} episodes;"
+        f" episodes with one {agg['background_collision_rate']:.3f} [{lo:.3f}, {hi:.3f}];"
+        f" max relative speed {_fmt(agg['background_collision_max_speed'])} m/s"
+    )

@@ -70,7 +70,9 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
     _max and drac_following_max; hard_brakes_per_episode (events), comfort_violations_per_episode (steps),
     max_deceleration_mean; yield_obligations, yield_compliance (= compliant / obligations) and
     yield_compliance_ci95; pass_rate, mean_delay and mean_time_to_pass (episodes that passed);
-    mean_pedestrian_wait; mean_distance.
+    mean_pedestrian_wait; mean_distance; world health, which the ego is not part of: background_collisions
+    (car–pedestrian contacts), background_collisions_legal (with a legal pedestrian),
+    background_collision_rate and _ci95 (episodes with one, Wilson), background_collision_max_speed.
     """
     cfg = config if config is not None else MetricsConfig()
     n = len(results)
@@ -94,6 +96,9 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
     passed = np.array([r.passed_crossing for r in results])
     drac = col("max_drac_crossing")
     waits = [w for r in results for w in r.pedestrian_wait_times]
+    bg_episodes = sum(r.background_collisions > 0 for r in results)
+    bg_speed = col("background_collision_max_speed")
+    bg_any = bool(np.isfinite(bg_speed).any())
     return {
         "episodes": n,
         "collision_rate": collisions / n,
@@ -129,6 +134,11 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
         "mean_time_to_pass": _mean(col("time_to_pass")),
         "mean_pedestrian_wait": _mean(waits),
         "mean_distance": float(col("distance_travelled").mean()),
+        "background_collisions": sum(r.background_collisions for r in results),
+        "background_collisions_legal": sum(r.background_collisions_legal for r in results),
+        "background_collision_rate": bg_episodes / n,
+        "background_collision_ci95": wilson_interval(bg_episodes, n),
+        "background_collision_max_speed": float(np.nanmax(bg_speed)) if bg_any else math.nan,
     }
 
 

@@ -11,7 +11,8 @@ highway-env's renderer):
   ``/world/predictions`` when the observation holds ``predicted_paths``;
 * time series ``/metrics/{ego_speed,ego_acceleration,min_distance,ttc}`` and
   ``/intention/ped_<id>`` when the observation holds ``crossing_intention``;
-* ``/events/collisions`` and ``/events/behaviour`` (`TextLog`).
+* ``/events/collisions``, ``/events/background_collisions`` (background car–pedestrian contacts) and
+  ``/events/behaviour`` (`TextLog`).
 
 Frame ``i`` is logged at ``step = i`` and ``sim_time = i·dt`` seconds; frame 0 is the state after ``reset``,
 so an episode of ``n`` steps has ``n + 1`` rows per per-frame entity.
@@ -379,6 +380,16 @@ class EpisodeRecorder:
                 rr.TextLog(
                     f"t={c.time:.1f}s collision with {c.kind} {c.other_id} at {c.relative_speed:.1f} m/s "
                     f"({'compliant' if c.compliant else 'non-compliant'} road user)",
+                    level="ERROR",
+                ),
+            )
+        for c in gt.extras.get("background_collisions", ()):
+            self.rec.log(
+                "events/background_collisions",
+                rr.TextLog(
+                    f"t={c.time:.1f}s background car hit pedestrian {c.other_id} at "
+                    f"{c.relative_speed:.1f} m/s ({'legal' if c.compliant else 'non-compliant'} pedestrian;"
+                    " world health, not the ego)",
                     level="ERROR",
                 ),
             )

@@ -33,6 +33,10 @@ class RoadConfig:
     """Speed limit in m/s (13.9 m/s = 50 km/h)."""
     sidewalk_width: float = 3.0
     """Width of each sidewalk in metres."""
+    parking_strip: float = 0.0
+    """Width (m) of a parking strip between the south kerb and the south sidewalk (0: none). Parked
+    vehicles stand in it; pedestrians walk on the sidewalk beyond it and step through it only to cross
+    (at the zebra the strip is a kerb build-out: no parking there, as in the zig-zag zone)."""
 
     @property
     def num_forward_lanes(self) -> int:
@@ -240,6 +244,42 @@ class SocialForceConfig:
 
 
 @dataclass(frozen=True)
+class WaitingPlace:
+    """A place by the kerb where bystanders stand without crossing: a bus stop, a shop front, a corner."""
+
+    x: float
+    """Centre of the place along the road (m)."""
+    side: Literal["south", "north"] = "south"
+    """Sidewalk the place is on."""
+    kind: Literal["bus_stop", "shop_front", "corner"] = "bus_stop"
+    """What the place is (for logs and replay; the behaviour is the same: stand, then walk on)."""
+    spread: float = 4.0
+    """Length (m) along the kerb over which the people there stand."""
+    kerb_distance: float = 0.8
+    """Distance (m) from the kerb line at which they stand (a shop front: near the building line)."""
+    initial: int = 0
+    """People standing there at t = 0 (a corner's talking group: one group of this size)."""
+    weight: float = 1.0
+    """Relative share of the random waiting arrivals that come to this place."""
+
+
+@dataclass(frozen=True)
+class BystanderConfig:
+    """Pedestrians near the crossing who do not intend to cross, besides those walking past.
+
+    Walking past is `PedestrianConfig.cross_fraction`'s complement; this table adds people who stand at
+    waiting places by the kerb, which look like pedestrians waiting to cross to a car's sensors.
+    """
+
+    places: tuple[WaitingPlace, ...] = ()
+    """Bus stops, shop fronts and corners near the crossing."""
+    arrival_rate: float = 0.0
+    """Random arrivals per minute at the waiting places (they step off a bus or out of a shop there)."""
+    dwell_mean: float = 60.0
+    """Mean time (s) a bystander stands at its place before walking on (exponential)."""
+
+
+@dataclass(frozen=True)
 class PedestrianConfig:
     """Pedestrian population: spawns, speeds, body size and behaviour."""
 
@@ -267,6 +307,8 @@ class PedestrianConfig:
     """Capacity of the pedestrian pool."""
     behaviour: BehaviourConfig = field(default_factory=BehaviourConfig)
     """Crossing decisions and irrational acts."""
+    bystanders: BystanderConfig = field(default_factory=BystanderConfig)
+    """People standing by the kerb who do not cross (bus stops, shop fronts, corners)."""
     social_force: SocialForceConfig = field(default_factory=SocialForceConfig)
     """Walking dynamics."""
 

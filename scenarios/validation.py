@@ -33,6 +33,7 @@ import pydantic
 
 from scenarios.config import (
     BehaviourConfig,
+    BystanderConfig,
     CrosswalkConfig,
     EgoConfig,
     IDMConfig,
@@ -44,6 +45,7 @@ from scenarios.config import (
     SocialForceConfig,
     TrafficConfig,
     VehicleSpawn,
+    WaitingPlace,
 )
 from scenarios.errors import Problem, ScenarioError
 
@@ -302,6 +304,13 @@ VALUE_RULES: dict[tuple[type, str], Rule] = {
     (PedestrianConfig, "desired_speed_max"): _between(0.0, 6.0, lo_open=True),
     (PedestrianConfig, "radius"): _between(0.0, 1.0, lo_open=True),
     (PedestrianConfig, "max_pedestrians"): _between(1, 10_000),
+    (RoadConfig, "parking_strip"): _between(0.0, 5.0),
+    (WaitingPlace, "spread"): _between(0.0, 100.0),
+    (WaitingPlace, "kerb_distance"): _between(0.3, 20.0),
+    (WaitingPlace, "initial"): _between(0, 50),
+    (WaitingPlace, "weight"): _NONNEG,
+    (BystanderConfig, "arrival_rate"): _between(0.0, 600.0),
+    (BystanderConfig, "dwell_mean"): _between(0.0, 3600.0, lo_open=True),
 }
 """Per-field ranges, keyed by (dataclass, field). Bounds beyond the physical ones are generous sanity caps
 (a 60 m/s car, a 6 m/s pedestrian) that catch unit mistakes such as km/h for m/s."""
@@ -443,6 +452,46 @@ def _cross_field_problems(cfg: ScenarioConfig) -> list[Problem]:
                 f"must be >= the {len(peds.spawns)} spawned pedestrians",
             )
         )
+    bystanders = peds.bystanders
+    for i, place in enumerate(bystanders.places):
+        where = f"pedestrians.bystanders.places[{i}]"
+        if not (0.0 <= place.x <= length):
+            out.append(Problem(f"{where}.x", place.x, f"must be along the road: [0, {length:g}]"))
+        if place.kerb_distance > road.sidewalk_width - 0.3:
+            out.append(
+                Problem(
+                    f"{where}.kerb_distance",
+                    place.kerb_distance,
+                    f"must be <= sidewalk_width - 0.3 = {road.sidewalk_width - 0.3:g} m",
+                )
+            )
+    if bystanders.arrival_rate > 0 and not any(p.weight > 0 for p in bystanders.places):
+        out.append(
+            Problem(
+                "pedestrians.bystanders.arrival_rate",
+                bystanders.arrival_rate,
+                "needs at least one place with weight > 0 in pedestrians.bystanders.places",
+            )
+        )
+    initial = len(peds.spawns) + sum(p.initial for p in bystanders.places)
+    if initial > peds.max_pedestrians:
+        out.append(
+            Problem(
+                "pedestrians.max_pedestrians",
+                peds.max_pedestrians,
+                f"must be >= the {initial} pedestrians present or spawned by the scenario",
+            )
+        )
+    for i, spawn in enumerate(traffic.spawns):
+        if spawn.parked and road.parking_strip < traffic.width:
+            out.append(
+                Problem(
+                    f"traffic.spawns[{i}].parked",
+                    spawn.parked,
+                    f"needs road.parking_strip >= the vehicle width {traffic.width:g} m "
+                    f"(got {road.parking_strip:g}): parked cars stand in the strip, not on the sidewalk",
+                )
+            )
     group_sides: dict[int, str] = {}
     for i, spawn in enumerate(peds.spawns):
         where = f"pedestrians.spawns[{i}]"

@@ -29,14 +29,15 @@ from crossing_env.pedestrians.transitions import (
     TURNS_BACK,
     anyone_at_zebra,
     begin_transitions,
+    detour,
     finish_transitions,
     geometric_masks,
     waiting_context,
     walk_inputs,
 )
 from crossing_env.road import RoadGeometry
-from crossing_env.types import BehaviourEvent, FloatArray
-from scenarios.config import PedestrianConfig, PedestrianSpawn, ScenarioConfig
+from crossing_env.types import BehaviourEvent, FloatArray, IntArray
+from scenarios.config import PedestrianConfig, PedestrianSpawn, ScenarioConfig, WaitingPlace
 
 
 @dataclass(frozen=True)
@@ -44,7 +45,7 @@ class CarSnapshot:
     """What pedestrians need to know about the vehicles for their gap decisions."""
 
     x: FloatArray
-    """(C,) front-centre... centre x of each moving vehicle."""
+    """(C,) centre x of each moving vehicle."""
     direction: FloatArray
     """(C,) +1 / −1 travel direction."""
     speed: FloatArray
@@ -53,6 +54,8 @@ class CarSnapshot:
     """(C,) half vehicle length."""
     boxes: FloatArray
     """(C_all, 4) boxes of all vehicles (parked included) for the social force."""
+    lane: IntArray
+    """(C,) lane index of each moving vehicle (for lane-by-lane gap acceptance)."""
 
 
 class PedestrianPopulation:
@@ -89,6 +92,9 @@ class PedestrianPopulation:
         self.base_speed = np.ones(n)
         self.side = np.ones(n)  # +1 starts south (walks north), −1 starts north
         self.intends = np.zeros(n, dtype=bool)
+        self.intent_time = np.full(n, np.nan)  # when the current intent was decided (s)
+        self.bystander = np.zeros(n, dtype=bool)  # near the crossing, not meaning to cross
+        self.dwell_left = np.zeros(n)  # seconds a bystander still stands at its waiting place
         self.crossing_x = np.zeros(n)
         self.waypoint = np.zeros((n, 2))
         self.goal = np.zeros((n, 2))
@@ -132,10 +138,17 @@ class PedestrianPopulation:
         self._force_parameters = model_parameters(self.config.social_force)
         """The social-force config as the kernels take it (unpacked once, not every step)."""
         self._walk_y = (
-            geometry.kerb_south - 0.55 * scenario.road.sidewalk_width,
+            geometry.sidewalk_south.y_max - 0.55 * scenario.road.sidewalk_width,
             geometry.kerb_north + 0.55 * scenario.road.sidewalk_width,
         )
+        """(south, north) walking lines: the middle of each sidewalk proper (beyond any parking strip)."""
+        self._bystanders_placed = False
+        places = self.config.bystanders.places
+        weights = np.array([p.weight for p in places], dtype=np.float64)
+        self._place_weights = weights / weights.sum() if weights.sum() > 0 else weights
         self._speed_scale = 0.9 if scenario.night else 1.0
+        self._lanes = (float(scenario.road.lane_width), int(scenario.road.num_lanes))
+        """(lane width, number of lanes), as the lane-by-lane gap check takes them."""
 
     # ------------------------------------------------------------------ spawning
     @property
@@ -201,6 +214,9 @@ class PedestrianPopulation:
         self.red_violator[i] = self.rng.random() < b.red_light_rate
         self.group[i] = spawn.group
         self.intends[i] = spawn.crosses
+        self.intent_time[i] = round(self.time, 9)  # plans are fixed at spawn; turning back keeps them
+        self.bystander[i] = not spawn.crosses  # walking past along the sidewalk
+        self.dwell_left[i] = 0.0
         self.wait_time[i] = 0.0
         self.hesitate_left[i] = 0.0
         self.crossed_on_red[i] = False
@@ -273,6 +289,43 @@ class PedestrianPopulation:
                 )
                 self.spawn(mate)
 
+    def spawn_bystander(self, place: WaitingPlace, group: int = -1) -> int | None:
+        """One bystander standing at `place` (it walks on along the sidewalk after its dwell time)."""
+        offset = self.rng.uniform(-place.spread / 2, place.spread / 2)
+        x = float(np.clip(place.x + offset, 1.0, self._road_length - 1.0))
+        i = self.spawn(PedestrianSpawn(x=x, side=place.side, crosses=False, group=group))
+        if i is None:
+            return None
+        y = (
+            self._kerb_lines[0] - place.kerb_distance
+            if place.side == "south"
+            else (self._kerb_lines[1] + place.kerb_distance)
+        )
+        self.position[i] = (x, y)
+        self.history[i] = self.position[i]
+        self.dwell_left[i] = self.rng.exponential(self.config.bystanders.dwell_mean)
+        return i
+
+    def _place_bystanders(self) -> None:
+        """The people standing at the waiting places at the start (a corner's as one talking group)."""
+        self._bystanders_placed = True
+        for place in self.config.bystanders.places:
+            group = -1
+            if place.kind == "corner" and place.initial > 1:
+                group = self.next_group
+                self.next_group += 1
+            for _ in range(place.initial):
+                self.spawn_bystander(place, group)
+
+    def _bystander_arrivals(self) -> None:
+        """Poisson arrivals at the waiting places (off a bus, out of a shop)."""
+        b = self.config.bystanders
+        if b.arrival_rate <= 0:
+            return
+        for _ in range(self.rng.poisson(b.arrival_rate / 60.0 * self.dt)):
+            place = b.places[int(self.rng.choice(len(b.places), p=self._place_weights))]
+            self.spawn_bystander(place)
+
     # ------------------------------------------------------------------ per step
     def _log(self, i: int, kind: str) -> None:
         self.events.append(BehaviourEvent(time=self.time, pedestrian_id=int(self.ids[i]), kind=kind))
@@ -283,8 +336,12 @@ class PedestrianPopulation:
         self.events = []
         while self._pending and self._pending[0].time <= time + 1e-9:
             self.spawn(self._pending.pop(0))
+        if not self._bystanders_placed:
+            self._place_bystanders()
         self._random_arrivals()
+        self._bystander_arrivals()
         self._update_states(cars, pedestrian_green)
+        detour(self.state, self.position, self.velocity, self.waypoint, self.radius, cars.boxes)
         if self.config.behaviour.update_force_intensity:
             self._update_force_intensity()
         self._update_velocities(cars)
@@ -312,7 +369,7 @@ class PedestrianPopulation:
         )
         # WAITING: decide.
         if waiting.size:
-            red, gap, seen, critical_gap, phase, waited, red_violator = waiting_context(
+            red, gap, seen, critical_gap, phase, waited, red_violator, safe = waiting_context(
                 waiting,
                 pedestrian_green is False,
                 self.jaywalker,
@@ -322,10 +379,15 @@ class PedestrianPopulation:
                 self.wait_time,
                 self.red_violator,
                 self.crossing_x,
+                self.side,
+                self.base_speed,
+                self.radius,
                 cars.x,
+                cars.lane,
                 cars.direction,
                 cars.half_length,
                 cars.speed,
+                *self._lanes,
             )
             # A distracted pedestrian looks up late: `seen` is the gap it saw DISTRACTED_LOOK_DELAY ago.
             ctx = DecisionContext(
@@ -338,17 +400,22 @@ class PedestrianPopulation:
                 dt=self.dt,
             )
             prob = self.decision_model.probability(ctx)
-            go = self.rng.random(waiting.size) < prob
+            # Nobody steps into a lane a car will occupy while they are in it (lane by lane, at their own
+            # speed); the draw comes first so the random stream does not depend on the check.
+            go = (self.rng.random(waiting.size) < prob) & safe
             # Groups move together: members wait at the kerb for companions still walking up (for at most
-            # GROUP_MAX_WAIT), and if one member goes, waiting companions go too.
+            # GROUP_MAX_WAIT), and if one member goes, waiting companions go too. A group decides on its
+            # members' worst gap: if any waiting member's lanes are not safe, nobody in the group goes.
             groups = self.group[waiting]
             if go.any() and np.any(groups >= 0):
                 walking_up = self.group[(self.state == APPROACHING) & self.intends & (self.group >= 0)]
                 patient = waited < GROUP_MAX_WAIT
                 held = (groups >= 0) & np.isin(groups, walking_up) & patient
-                go &= ~held
+                unsafe_groups = groups[~safe & (groups >= 0)]
+                group_safe = ~((groups >= 0) & np.isin(groups, unsafe_groups))
+                go &= ~held & group_safe
                 moving_groups = groups[go & (groups >= 0)]
-                go |= (groups >= 0) & np.isin(groups, moving_groups) & ~held
+                go |= (groups >= 0) & np.isin(groups, moving_groups) & ~held & group_safe
             for k in np.flatnonzero(go):
                 self.accepted_gap[waiting[k]] = gap[k]
                 self._start_crossing(int(waiting[k]), bool(red[k]))
@@ -424,7 +491,13 @@ class PedestrianPopulation:
 
     def _update_velocities(self, cars: CarSnapshot) -> None:
         rows, v0, stay = walk_inputs(
-            self.state, self.hesitate_left, self.desired_speed, self.position, *self._kerb_lines
+            self.state,
+            self.hesitate_left,
+            self.dwell_left,
+            self.desired_speed,
+            self.position,
+            *self._kerb_lines,
+            self.dt,
         )
         if rows.size == 0:
             return

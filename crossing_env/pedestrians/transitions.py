@@ -37,6 +37,11 @@ GROUP_JOIN_DISTANCE = 1.5
 """Metres from a waiting companion at which a group member walking up counts as arrived at the kerb."""
 GROUP_MAX_WAIT = 15.0
 """Seconds a group member at the kerb waits for companions still walking up before deciding alone."""
+LANE_GAP_MARGIN = 1.0
+"""Seconds of margin a pedestrian keeps, lane by lane, between its own time in a lane and a car's (design
+choice: about one human reaction time, so a driver who reacts late can still brake)."""
+START_UP_TIME = 0.5
+"""Seconds a pedestrian at the kerb loses getting up to walking speed (the social force's relaxation time)."""
 
 
 @njit(cache=True, nogil=True)
@@ -99,7 +104,7 @@ def gaps(
     """Time gap (s) until the first approaching car reaches the crossing line of each pedestrian at `rows`.
 
     Cars already past the line and stopped cars are ignored (every line spans the whole carriageway); a
-    car whose body already covers the line gives a gap of 0.
+    moving car whose body already covers the line gives a gap of 0.
     """
     out = np.full(rows.shape[0], np.inf)
     for k in range(rows.shape[0]):
@@ -108,10 +113,56 @@ def gaps(
             # Distance from the car's front to the pedestrian's line, along the car's travel direction.
             ahead = (cx - car_x[c]) * direction[c] - half_length[c]
             if ahead < 0:
-                if ahead > -2 * half_length[c] - 0.5:
-                    out[k] = 0.0  # the car's body covers the line
+                if ahead > -2 * half_length[c] - 0.5 and speed[c] > 0.3:
+                    out[k] = 0.0  # a moving car's body covers the line (a stopped one is walked round)
             elif speed[c] > 0.3:
                 out[k] = min(out[k], ahead / max(speed[c], 1e-3))
+    return out
+
+
+@njit(cache=True, nogil=True)
+def lane_safe(
+    rows: np.ndarray,
+    crossing_x: FloatArray,
+    side: FloatArray,
+    walk_speed: FloatArray,
+    radius: FloatArray,
+    look_delay: FloatArray,
+    car_x: FloatArray,
+    car_lane: np.ndarray,
+    direction: FloatArray,
+    half_length: FloatArray,
+    speed: FloatArray,
+    lane_width: float,
+    num_lanes: int,
+) -> np.ndarray:
+    """Per pedestrian at `rows`: whether every lane it must cross is free while it is in that lane.
+
+    Lane by lane, the pedestrian's time in the lane (entering with its body edge, leaving with its far
+    edge, at its own walking speed from a standstill at the kerb) is compared with the time each moving
+    car occupies the pedestrian's line (front reaching it to rear leaving it, at constant speed, seen
+    `look_delay` late): the two must be `LANE_GAP_MARGIN` apart. A car far enough away, or one that
+    passes before the pedestrian reaches its lane, is no conflict; stopped cars are none either.
+    """
+    out = np.ones(rows.shape[0], np.bool_)
+    for k in range(rows.shape[0]):
+        i = rows[k]
+        v = max(walk_speed[i], 0.3)
+        r = radius[i]
+        for c in range(car_x.shape[0]):
+            if speed[c] <= 0.3:
+                continue
+            lane = min(max(car_lane[c], 0), num_lanes - 1)
+            # Distance walked from the kerb standoff to enter / leave the lane (south side walks north).
+            near = lane * lane_width if side[i] > 0 else (num_lanes - lane - 1) * lane_width
+            t_in = START_UP_TIME + max(near + KERB_STANDOFF - r, 0.0) / v
+            t_out = START_UP_TIME + (near + lane_width + KERB_STANDOFF + r) / v
+            ahead = (crossing_x[i] - car_x[c]) * direction[c] - half_length[c]
+            t_front = (ahead - r) / speed[c] + look_delay[k]
+            t_rear = (ahead + 2.0 * half_length[c] + r) / speed[c] + look_delay[k]
+            if t_rear > t_in - LANE_GAP_MARGIN and t_front < t_out + LANE_GAP_MARGIN:
+                out[k] = False
+                break
     return out
 
 
@@ -208,26 +259,64 @@ def finish_transitions(
 def walk_inputs(
     state: np.ndarray,
     hesitate_left: FloatArray,
+    dwell_left: FloatArray,
     desired_speed: FloatArray,
     position: FloatArray,
     kerb_south: float,
     kerb_north: float,
+    dt: float,
 ) -> tuple[np.ndarray, FloatArray, np.ndarray]:
     """Active slots, desired speeds and sidewalk constraint for the social-force step.
 
-    Hesitating pedestrians want to stand (v0 = 0); waiting ones keep walking towards their kerb point
+    Hesitating pedestrians and bystanders standing at their place want to stand (v0 = 0); the bystanders'
+    dwell timers run down here. Waiting ones keep walking towards their kerb point
     (the arrival slow-down makes them stand there; with no attraction, the kerb repulsion would push them
     back). Only crossing pedestrians may be on the carriageway: everyone else is held on the sidewalk.
     (The step itself is `social_force.walk_step`, called from Python: kernels never call kernels of
     another module, whose changes numba's on-disk cache would not notice.)
     """
     rows = np.flatnonzero(state != INACTIVE)
-    v0 = np.where(hesitate_left > 0, 0.0, desired_speed)
+    v0 = np.where((hesitate_left > 0) | (dwell_left > 0), 0.0, desired_speed)
     stay = np.empty(state.shape[0], dtype=np.bool_)
     for i in range(state.shape[0]):
+        dwell_left[i] = max(0.0, dwell_left[i] - dt)
         on_road = kerb_south < position[i, 1] < kerb_north
         stay[i] = state[i] != CROSSING and not (state[i] == APPROACHING and on_road)
     return rows, v0, stay
+
+
+@njit(cache=True, nogil=True)
+def detour(
+    state: np.ndarray,
+    position: FloatArray,
+    velocity: FloatArray,
+    waypoint: FloatArray,
+    radius: FloatArray,
+    boxes: FloatArray,
+) -> None:
+    """Crossing pedestrians held up by a vehicle standing on their line walk round it (waypoints in place).
+
+    A crossing pedestrian slower than 0.3 m/s whose straight line to its far-kerb waypoint runs into a
+    vehicle box within 1.5 m moves its waypoint's x past the nearer end of the box (plus its radius and
+    0.3 m), instead of waiting behind the vehicle for as long as it stands there.
+    """
+    for i in range(state.shape[0]):
+        if state[i] != CROSSING:
+            continue
+        vx, vy = velocity[i, 0], velocity[i, 1]
+        if vx * vx + vy * vy > 0.09:
+            continue
+        x, y, r = position[i, 0], position[i, 1], radius[i]
+        ty = waypoint[i, 1]
+        for c in range(boxes.shape[0]):
+            x0, y0, x1, y1 = boxes[c, 0], boxes[c, 1], boxes[c, 2], boxes[c, 3]
+            if not (x0 - r < x < x1 + r):
+                continue
+            ahead = y0 - (y + r) if ty > y else (y - r) - y1
+            if -r < ahead < 1.5:
+                left, right = x0 - r - 0.3, x1 + r + 0.3
+                waypoint[i, 0] = left if x - left < right - x else right
+                break
 
 
 @njit(cache=True, nogil=True)
@@ -288,22 +377,47 @@ def waiting_context(
     wait_time: FloatArray,
     red_violator: np.ndarray,
     crossing_x: FloatArray,
+    side: FloatArray,
+    walk_speed: FloatArray,
+    radius: FloatArray,
     car_x: FloatArray,
+    car_lane: np.ndarray,
     direction: FloatArray,
     half_length: FloatArray,
     speed: FloatArray,
-) -> tuple[np.ndarray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, np.ndarray]:
-    """Per waiting slot: (red, gap, gap seen, critical gap, phase, waited, red violator).
+    lane_width: float,
+    num_lanes: int,
+) -> tuple[np.ndarray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, np.ndarray, np.ndarray]:
+    """Per waiting slot: (red, gap, gap seen, critical gap, phase, waited, red violator, lanes safe).
 
     Red applies to the zebra's signal, so not to jaywalkers; the gap seen by a distracted pedestrian is
-    the one of `DISTRACTED_LOOK_DELAY` seconds ago.
+    the one of `DISTRACTED_LOOK_DELAY` seconds ago. "Lanes safe" is `lane_safe` with that late look; a
+    pedestrian who does not look (critical gap 0, children running out) skips the check.
     """
     red = np.empty(waiting.shape[0], np.bool_)
     for k in range(waiting.shape[0]):
         red[k] = signal_red and not jaywalker[waiting[k]]
     gap = gaps(crossing_x, waiting, car_x, direction, half_length, speed)
-    seen = gap + DISTRACTED_LOOK_DELAY * distracted[waiting]
-    return red, gap, seen, critical_gap[waiting], phase[waiting], wait_time[waiting], red_violator[waiting]
+    delay = DISTRACTED_LOOK_DELAY * distracted[waiting]
+    seen = gap + delay
+    safe = lane_safe(
+        waiting,
+        crossing_x,
+        side,
+        walk_speed,
+        radius,
+        delay,
+        car_x,
+        car_lane,
+        direction,
+        half_length,
+        speed,
+        lane_width,
+        num_lanes,
+    )
+    crit = critical_gap[waiting]
+    safe |= crit <= 0.0
+    return red, gap, seen, crit, phase[waiting], wait_time[waiting], red_violator[waiting], safe
 
 
 @njit(cache=True, nogil=True)

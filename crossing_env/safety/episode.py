@@ -161,6 +161,9 @@ class EpisodeMetrics:
         self._veh_collisions = 0
         self._compliant_collisions = 0
         self._max_impact = math.nan
+        self._bg_collisions = 0
+        self._bg_legal = 0
+        self._bg_max_speed = math.nan
         # TTC / separation / DRAC
         self._min_ttc = _INF
         self._min_ttc_veh = _INF
@@ -263,6 +266,11 @@ class EpisodeMetrics:
                     self._max_impact = float(ev.relative_speed)
             else:
                 self._veh_collisions += 1
+        for ev in gt.extras.get("background_collisions", ()):
+            self._bg_collisions += 1
+            self._bg_legal += bool(ev.compliant)
+            if not ev.relative_speed <= self._bg_max_speed:  # also replaces the initial nan
+                self._bg_max_speed = float(ev.relative_speed)
 
         if self._half is None or self._size != (length, width):
             self._size = (length, width)
@@ -510,6 +518,9 @@ class EpisodeMetrics:
             compliant_pedestrian_collisions=self._compliant_collisions,
             noncompliant_pedestrian_collisions=self._ped_collisions - self._compliant_collisions,
             max_impact_speed=self._max_impact,
+            background_collisions=self._bg_collisions,
+            background_collision_max_speed=self._bg_max_speed,
+            background_collisions_legal=self._bg_legal,
             min_ttc=self._min_ttc,
             min_ttc_vehicle=self._min_ttc_veh,
             serious_conflict_time=self._serious_time,

@@ -96,6 +96,12 @@ class EpisodeResult:
     """Contacts with jaywalking / red-light pedestrians."""
     max_impact_speed: float
     """Largest ego–pedestrian impact speed; nan without pedestrian collision."""
+    background_collisions: int
+    """Contacts between background cars and pedestrians (world health: the ego is not involved)."""
+    background_collision_max_speed: float
+    """Largest relative speed of a background car–pedestrian contact; nan if none."""
+    background_collisions_legal: int
+    """Background contacts in which the pedestrian was crossing legally (or off the road)."""
     min_ttc: float
     """Minimum ego–pedestrian TTC (box–disc, constant velocity); inf if never on a collision course."""
     min_ttc_vehicle: float

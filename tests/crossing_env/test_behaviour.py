@@ -294,12 +294,14 @@ def test_groups_cross_together() -> None:
     behaviour = BehaviourConfig(
         decision_model="qlb", hesitation_rate=0.0, turn_back_rate=0.0, distraction_rate=0.0
     )
+    # Busy, but not so busy that no gap lets a group clear both lanes (lane by lane, at walking speed)
+    # within a minute: at 900 cars/h per lane it hardly ever comes.
     scenario = ScenarioConfig(
-        traffic=TrafficConfig(flow_per_lane=900.0),
+        traffic=TrafficConfig(flow_per_lane=300.0),
         pedestrians=PedestrianConfig(spawns=spawns, spawn_rate=0.0, behaviour=behaviour),
     )
     for seed in range(3):
-        _, events = _run(scenario, seconds=40.0, seed=seed)
+        _, events = _run(scenario, seconds=60.0, seed=seed)
         start = {e.pedestrian_id: e.time for e in events if e.kind == "start_crossing"}
         assert len(start) == 5
         assert start[0] == start[1]
@@ -423,15 +425,17 @@ def test_distracted_pedestrian_takes_a_gap_an_attentive_one_refuses() -> None:
     peds.state[:2] = WAITING  # put them at their kerb points, about to decide
     peds.position[:2] = peds.waypoint[:2]
     peds.velocity[:2] = 0.0
-    # One car on each side, 5 s from each pedestrian's line: under the attentive pedestrian's 6 s critical
-    # gap; the distracted one (critical gap x 0.7, view 1 s late) takes it.
+    # A car in the north (−x) lane 5 s from the lines: under the attentive pedestrian's 6 s critical gap;
+    # the distracted one (critical gap x 0.7, view 1 s late), for whom it is the near lane, takes it. The
+    # south-lane car is 12 s away, far enough for either to clear its lane.
     x = peds.crossing_x[:2]
     cars = CarSnapshot(
-        x=np.array([x[0] - 50.0 - 2.25, x[1] + 50.0 + 2.25]),
+        x=np.array([x[0] - 120.0 - 2.25, x[1] + 50.0 + 2.25]),
         direction=np.array([1.0, -1.0]),
         speed=np.array([10.0, 10.0]),
         half_length=np.array([2.25, 2.25]),
         boxes=np.zeros((0, 4)),
+        lane=np.array([0, 1]),
     )
     peds.step(world.time + 0.1, cars, None)
     assert peds.state[0] == WAITING and peds.state[1] == CROSSING

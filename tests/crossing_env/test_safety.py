@@ -105,6 +105,8 @@ def make_gt(
         pedestrian_radii=np.array([p.radius for p in peds], dtype=float),
         pedestrian_states=states,
         intends_to_cross=np.ones(len(peds), dtype=bool),
+        intent_decided_at=np.zeros(len(peds)),
+        is_bystander=np.zeros(len(peds), dtype=bool),
         on_crossing=on_crossing,
         on_road=on_road,
         waiting=waiting,
