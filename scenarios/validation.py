@@ -343,13 +343,11 @@ def _where(lane: int | str) -> str:
     return f"lane {lane}" if isinstance(lane, int) else lane
 
 
-def _cross_field_problems(cfg: ScenarioConfig) -> list[Problem]:
-    """Checks that relate several fields: geometry, ordering of bounds, capacities."""
-    out: list[Problem] = []
-    road, crossing, ego, traffic, peds = cfg.road, cfg.crossing, cfg.ego, cfg.traffic, cfg.pedestrians
+def _crossing_problems(cfg: ScenarioConfig) -> list[Problem]:
+    """The crossing lies on the road; the signal offset is within its cycle."""
+    road, crossing = cfg.road, cfg.crossing
     length = road.length
-    n_lanes, n_fwd = road.num_lanes, road.num_forward_lanes
-
+    out: list[Problem] = []
     half = crossing.width / 2
     if not (half <= crossing.position <= length - half):
         out.append(
@@ -366,14 +364,30 @@ def _cross_field_problems(cfg: ScenarioConfig) -> list[Problem]:
                 "crossing.signal.offset", crossing.signal.offset, f"must be < the cycle length {cycle:g} s"
             )
         )
+    return out
 
+
+def _ego_problems(cfg: ScenarioConfig) -> list[Problem]:
+    """The ego starts in a forward lane, on the road, within its own speed limit."""
+    road, ego = cfg.road, cfg.ego
+    length = road.length
+    n_fwd = road.num_forward_lanes
+    out: list[Problem] = []
     if ego.lane >= n_fwd:
         out.append(Problem("ego.lane", ego.lane, f"must be a forward lane: 0..{n_fwd - 1} for this road"))
     if not (0.0 <= ego.x < length):
         out.append(Problem("ego.x", ego.x, f"must be on the road: [0, {length:g})"))
     if ego.speed > ego.max_speed:
         out.append(Problem("ego.speed", ego.speed, f"must be <= ego.max_speed = {ego.max_speed:g}"))
+    return out
 
+
+def _traffic_problems(cfg: ScenarioConfig) -> list[Problem]:
+    """IDM limits in order; vehicles fit their lane and pool; spawns on the road; parked cars in the strip."""
+    road, traffic = cfg.road, cfg.traffic
+    length = road.length
+    n_lanes = road.num_lanes
+    out: list[Problem] = []
     idm = traffic.idm
     if idm.max_deceleration < idm.comfortable_deceleration:
         out.append(
@@ -407,6 +421,23 @@ def _cross_field_problems(cfg: ScenarioConfig) -> list[Problem]:
             out.append(Problem(f"{where}.x", spawn.x, f"must be on the road: [0, {length:g}]"))
         if spawn.parked and spawn.speed != 0.0:
             out.append(Problem(f"{where}.speed", spawn.speed, "must be 0 for a parked vehicle"))
+    for i, spawn in enumerate(traffic.spawns):
+        if spawn.parked and road.parking_strip < traffic.width:
+            out.append(
+                Problem(
+                    f"traffic.spawns[{i}].parked",
+                    spawn.parked,
+                    f"needs road.parking_strip >= the vehicle width {traffic.width:g} m "
+                    f"(got {road.parking_strip:g}): parked cars stand in the strip, not on the sidewalk",
+                )
+            )
+    return out
+
+
+def _overlap_problems(cfg: ScenarioConfig) -> list[Problem]:
+    """Vehicles (ego included) sharing a lane, or the parking strip, do not overlap at t = 0."""
+    ego, traffic = cfg.ego, cfg.traffic
+    out: list[Problem] = []
     # Vehicles (ego included) sharing a lane must not overlap at t = 0. Parked vehicles stand in the
     # parking strip outside the south kerb, off the lanes, so they only clash with each other.
     placed: list[tuple[str, int | str, float]] = [("ego", ego.lane, ego.x)] + [
@@ -425,7 +456,14 @@ def _cross_field_problems(cfg: ScenarioConfig) -> list[Problem]:
                         f"centres must be >= traffic.length = {traffic.length:g} m apart",
                     )
                 )
+    return out
 
+
+def _pedestrian_problems(cfg: ScenarioConfig) -> list[Problem]:
+    """Speed bounds in order, the gap floor under the mean, spawns along the road, groups on one side."""
+    road, peds = cfg.road, cfg.pedestrians
+    length = road.length
+    out: list[Problem] = []
     if not (peds.desired_speed_min <= peds.desired_speed_mean <= peds.desired_speed_max):
         out.append(
             Problem(
@@ -452,6 +490,33 @@ def _cross_field_problems(cfg: ScenarioConfig) -> list[Problem]:
                 f"must be >= the {len(peds.spawns)} spawned pedestrians",
             )
         )
+    group_sides: dict[int, str] = {}
+    for i, spawn in enumerate(peds.spawns):
+        where = f"pedestrians.spawns[{i}]"
+        if not (0.0 <= spawn.x <= length):
+            out.append(Problem(f"{where}.x", spawn.x, f"must be along the road: [0, {length:g}]"))
+        if spawn.crossing_x is not None and not (0.0 <= spawn.crossing_x <= length):
+            out.append(
+                Problem(f"{where}.crossing_x", spawn.crossing_x, f"must be along the road: [0, {length:g}]")
+            )
+        if spawn.time > cfg.duration:
+            out.append(Problem(f"{where}.time", spawn.time, f"must be <= duration = {cfg.duration:g} s"))
+        if spawn.group >= 0:
+            side = group_sides.setdefault(spawn.group, spawn.side)
+            if side != spawn.side:
+                out.append(
+                    Problem(
+                        f"{where}.side", spawn.side, f"must match the side {side!r} of group {spawn.group}"
+                    )
+                )
+    return out
+
+
+def _bystander_problems(cfg: ScenarioConfig) -> list[Problem]:
+    """Bystander places on the sidewalk, arrivals with somewhere to go, a pool that holds everyone."""
+    road, peds = cfg.road, cfg.pedestrians
+    length = road.length
+    out: list[Problem] = []
     bystanders = peds.bystanders
     for i, place in enumerate(bystanders.places):
         where = f"pedestrians.bystanders.places[{i}]"
@@ -482,36 +547,22 @@ def _cross_field_problems(cfg: ScenarioConfig) -> list[Problem]:
                 f"must be >= the {initial} pedestrians present or spawned by the scenario",
             )
         )
-    for i, spawn in enumerate(traffic.spawns):
-        if spawn.parked and road.parking_strip < traffic.width:
-            out.append(
-                Problem(
-                    f"traffic.spawns[{i}].parked",
-                    spawn.parked,
-                    f"needs road.parking_strip >= the vehicle width {traffic.width:g} m "
-                    f"(got {road.parking_strip:g}): parked cars stand in the strip, not on the sidewalk",
-                )
-            )
-    group_sides: dict[int, str] = {}
-    for i, spawn in enumerate(peds.spawns):
-        where = f"pedestrians.spawns[{i}]"
-        if not (0.0 <= spawn.x <= length):
-            out.append(Problem(f"{where}.x", spawn.x, f"must be along the road: [0, {length:g}]"))
-        if spawn.crossing_x is not None and not (0.0 <= spawn.crossing_x <= length):
-            out.append(
-                Problem(f"{where}.crossing_x", spawn.crossing_x, f"must be along the road: [0, {length:g}]")
-            )
-        if spawn.time > cfg.duration:
-            out.append(Problem(f"{where}.time", spawn.time, f"must be <= duration = {cfg.duration:g} s"))
-        if spawn.group >= 0:
-            side = group_sides.setdefault(spawn.group, spawn.side)
-            if side != spawn.side:
-                out.append(
-                    Problem(
-                        f"{where}.side", spawn.side, f"must match the side {side!r} of group {spawn.group}"
-                    )
-                )
     return out
+
+
+_CROSS_FIELD_CHECKS = (
+    _crossing_problems,
+    _ego_problems,
+    _traffic_problems,
+    _overlap_problems,
+    _pedestrian_problems,
+    _bystander_problems,
+)
+
+
+def _cross_field_problems(cfg: ScenarioConfig) -> list[Problem]:
+    """Checks that relate several fields: geometry, ordering of bounds, capacities."""
+    return [problem for check in _CROSS_FIELD_CHECKS for problem in check(cfg)]
 
 
 # ---------------------------------------------------------------------------------------- public API
