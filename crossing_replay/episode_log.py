@@ -79,7 +79,10 @@ def ground_truth_digest(gt: GroundTruth) -> str:
         elif name == "extras":
             for key in sorted(value):
                 h.update(key.encode())
-                h.update(np.ascontiguousarray(np.asarray(value[key])).tobytes())
+                array = np.asarray(value[key])
+                # An object array's bytes are pointers (they differ between runs); hash its text instead.
+                data = repr(value[key]).encode() if array.dtype == object else array.tobytes()
+                h.update(data)
         else:
             h.update(f"{name}={value!r}".encode())
     return h.hexdigest()
