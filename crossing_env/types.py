@@ -122,7 +122,11 @@ class GroundTruth:
     pedestrian_states: IntArray
     """(P,) `PedState` codes."""
     intends_to_cross: BoolArray
-    """(P,) whether the pedestrian means to cross the road (hidden intention)."""
+    """(P,) whether the pedestrian means to cross the road (hidden intention); False for bystanders."""
+    intent_decided_at: FloatArray
+    """(P,) simulation time (s) at which the current intent was decided; NaN while undecided."""
+    is_bystander: BoolArray
+    """(P,) a pedestrian near the crossing who never means to cross (waits, stands or walks past)."""
     on_crossing: BoolArray
     """(P,) pedestrian centre inside the zebra area (on the carriageway)."""
     on_road: BoolArray

@@ -63,6 +63,11 @@ class World:
         self.background_contacts = 0
         self._ego_vehicle_contact = np.zeros(self.traffic.capacity, dtype=bool)
         self.conflict_area = self.geometry.conflict_area(scenario.ego.lane)
+        n = self.pedestrians.capacity
+        self._intent_slot_ids = np.full(n, -1, dtype=np.int64)
+        self.intent_decided_at = np.full(n, np.nan)
+        """Per pool slot: when its pedestrian's intent was decided (today: fixed at spawn)."""
+        self._note_new_intents()
         self._refresh_masks()
 
     def _refresh_masks(self) -> None:
@@ -89,6 +94,7 @@ class World:
         green = self.geometry.pedestrian_green(self.time)
         peds, tr = self.pedestrians, self.traffic
         peds.step(self.time, self._car_snapshot(), green)
+        self._note_new_intents()
         # Background drivers: obstacles are pedestrians on the road, at the kerb, or on the zebra
         # (positions have not moved since the masks were refreshed at the end of the last step).
         at_zebra = peds.anyone_at_zebra(self.ped_on_crossing)
@@ -114,6 +120,14 @@ class World:
         peds.record_history()
         tr.despawn_finished()
         tr._arrivals(dt)
+
+    def _note_new_intents(self) -> None:
+        """Intent is fixed at spawn today: a slot holding a new pedestrian decided it now."""
+        peds = self.pedestrians
+        new = (peds.state != 0) & (peds.ids != self._intent_slot_ids)
+        if new.any():
+            self.intent_decided_at[new] = self.time
+            self._intent_slot_ids[new] = peds.ids[new]
 
     def _resize_new_pedestrians(self) -> None:
         peds = self.pedestrians
@@ -181,6 +195,8 @@ class World:
             pedestrian_radii=peds.radius[act].copy(),
             pedestrian_states=peds.state[act].copy(),
             intends_to_cross=peds.intends[act].copy(),
+            intent_decided_at=self.intent_decided_at[act].copy(),
+            is_bystander=np.zeros(act.shape[0], dtype=bool),
             on_crossing=self.ped_on_crossing[act],
             on_road=self.ped_on_road[act],
             waiting=(peds.state[act] == WAITING),
