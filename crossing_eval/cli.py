@@ -29,8 +29,9 @@ DEFAULT_SEED = 2024
 """Base seed of the default run."""
 DEFAULT_OUT = "crossing-eval-results"
 """Default output folder (relative to the working directory)."""
-PREDICTOR_CHOICES = ("s-cgru", "cvm", "none")
-INTENTION_CHOICES = ("qlb", "classical", "none")
+PREDICTOR_CHOICES = ("s-cgru", "cvm", "none", "oracle")
+INTENTION_CHOICES = ("qlb", "classical", "none", "oracle")
+"""'oracle' is privileged (reads the ground truth: an upper bound for the value-of-prediction table)."""
 
 
 def _int(text: str) -> int:
