@@ -111,6 +111,18 @@ class YieldingConfig(DrivingConfig):
 
 
 @dataclass(frozen=True)
+class PredictiveYieldingConfig(YieldingConfig):
+    """Parameters of `PredictiveYielding` (the yielding rules plus release by prediction)."""
+
+    release_threshold: float = 0.2
+    """A pedestrian off the road whose ``crossing_intention`` is at most this is confidently not crossing:
+    not yielded to as waiting, unless stepping towards the road or on it."""
+    stepping_speed: float = 0.3
+    """Speed (m/s) towards the road, near the kerb, at which a pedestrian visibly steps out (legal duty
+    whatever the prediction)."""
+
+
+@dataclass(frozen=True)
 class TTCBrakeConfig(DrivingConfig):
     """Parameters of `TTCEmergencyBrake`."""
 

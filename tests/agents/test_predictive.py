@@ -1,0 +1,60 @@
+"""The prediction-aware yielding policy: releases on confident predictions, never against a visible duty."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from agents import PredictiveYielding, YieldingPolicy
+from tests.agents.test_policies import K, accel, crossing_centre, make_obs
+
+
+def _intent(value: float) -> np.ndarray:
+    return np.r_[value, np.zeros(K - 1)].astype(np.float32)
+
+
+def test_without_predictors_it_is_the_yielding_policy() -> None:
+    rng = np.random.default_rng(3)
+    for _ in range(50):
+        peds = [
+            {
+                "dx": float(rng.uniform(5, 40)),
+                "dy": float(rng.uniform(-4, 6)),
+                "vx": float(rng.normal()),
+                "vy": float(rng.normal()),
+                "w": int(rng.random() < 0.3),
+            }
+            for _ in range(3)
+        ]
+        obs = make_obs(float(rng.uniform(0, 14)), float(rng.uniform(-5, 40)), peds)
+        np.testing.assert_array_equal(PredictiveYielding()(obs), YieldingPolicy()(obs))
+
+
+def test_releases_a_confident_non_crosser_at_the_kerb() -> None:
+    waiting = {"dx": crossing_centre(25.0), "dy": -2.6, "w": 1}
+    obs = dict(make_obs(12.0, 25.0, [waiting]), crossing_intention=_intent(0.05))
+    assert accel(YieldingPolicy()(obs))[0] < -2.0  # the old policy stops whatever the estimate
+    assert accel(PredictiveYielding()(obs))[0] >= 0.0  # predicted not to cross: drive on
+    unsure = dict(obs, crossing_intention=_intent(0.5))
+    assert accel(PredictiveYielding()(unsure))[0] < -2.0  # not confident: stop as before
+
+
+def test_never_releases_against_a_visible_duty() -> None:
+    low = _intent(0.0)
+    stepping = {"dx": crossing_centre(25.0), "dy": -2.2, "vy": 0.8, "w": 1}  # stepping towards the road
+    on_zebra = {"dx": crossing_centre(25.0), "dy": -1.0, "vy": 1.3, "oc": 1, "road": 1}
+    for ped in (stepping, on_zebra):
+        obs = dict(make_obs(12.0, 25.0, [ped]), crossing_intention=low)
+        assert accel(PredictiveYielding()(obs))[0] < -2.0, ped
+
+
+def test_predicted_paths_replace_constant_velocity() -> None:
+    # Mid-block pedestrian at the kerb 18 m ahead, moving towards the road; the predictor says it stops.
+    ped = {"dx": 18.0, "dy": -2.2, "vy": 1.0}
+    paths = np.zeros((K, 12, 2), dtype=np.float32)
+    paths[0, :, 0], paths[0, :, 1] = 18.0, -2.4
+    obs = dict(make_obs(10.0, 150.0, [ped]), predicted_paths=paths)
+    assert accel(YieldingPolicy()(obs))[0] < -2.0  # the union with constant velocity still brakes
+    assert accel(PredictiveYielding()(obs))[0] >= 0.0
+    # The same predictor predicting a step into the lane: brake.
+    paths[0, :, 1] = -2.2 + 1.0 * 0.4 * np.arange(1, 13)
+    assert accel(PredictiveYielding()(dict(obs, predicted_paths=paths)))[0] < -2.0
