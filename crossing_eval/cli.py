@@ -17,6 +17,7 @@ from typing import Any
 
 from agents import POLICIES
 from crossing_common.cli import int_at_least
+from crossing_eval.grid import parse_grid, run_grid_command
 from crossing_eval.outputs import write_outputs
 from crossing_eval.report import format_table, summarise
 from crossing_eval.runners import default_workers, run_tasks
@@ -32,6 +33,8 @@ DEFAULT_OUT = "crossing-eval-results"
 PREDICTOR_CHOICES = ("s-cgru", "cvm", "none", "oracle")
 INTENTION_CHOICES = ("qlb", "classical", "none", "oracle")
 """'oracle' is privileged (reads the ground truth: an upper bound for the value-of-prediction table)."""
+GRID_POLICIES = ("yielding", "predictive_yielding")
+"""Policies of a `--grid` run unless `--policies` says otherwise."""
 
 
 def _int(text: str) -> int:
@@ -107,6 +110,15 @@ def build_parser() -> argparse.ArgumentParser:
         default="qlb",
         help="crossing-intention wrapper for policies that use predictions (default qlb)",
     )
+    parser.add_argument(
+        "--grid",
+        nargs="+",
+        default=None,
+        metavar="AXIS=A,B",
+        help="value-of-prediction grid: run every combination of e.g. intention=none,classical,qlb,oracle"
+        " predictor=none,cvm,s-cgru,oracle on the same seeds and write value_of_prediction.md/.csv/.png"
+        " (default policies: yielding,predictive_yielding)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
 
@@ -139,7 +151,15 @@ def _resolve_policies(parser: argparse.ArgumentParser, names: list[str] | None) 
 def _parse(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> argparse.Namespace:
     """Parsed and checked arguments, with ``scenarios`` and ``policies`` resolved; bad ones exit with 2."""
     args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)
     args.scenarios = _resolve_scenarios(parser, args.scenarios)
+    if args.grid is not None:
+        try:
+            args.grid = parse_grid(args.grid, INTENTION_CHOICES, PREDICTOR_CHOICES)
+        except ValueError as exc:
+            parser.error(f"argument --grid: {exc}")
+        if args.policies is None:
+            args.policies = list(GRID_POLICIES)
     args.policies = _resolve_policies(parser, args.policies)
     if args.address is not None and args.backend != "ray":
         parser.error(f"argument --address: {args.address!r} needs --backend ray")
@@ -172,6 +192,8 @@ def _settings(args: argparse.Namespace, records: Sequence[EpisodeRecord]) -> dic
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of `crossing-eval`; returns the exit status (0 ok, 2 bad arguments)."""
     args = _parse(build_parser(), argv)
+    if args.grid is not None:
+        return run_grid_command(args)
     tasks = make_tasks(
         args.scenarios, args.policies, args.episodes, args.seed, args.predictor, args.intention
     )
