@@ -13,6 +13,7 @@ import numpy as np
 from agents.config import CautiousConfig, YieldingConfig
 from agents.view import (
     EPS,
+    PREDICTION_STEP,
     ObsLike,
     View,
     corridor_interval,
@@ -139,7 +140,11 @@ class YieldingPolicy:
         if use_pred and view.paths is not None:
             pt_in, pt_out, px_in = path_interval(view.paths, view.present, hw, -front)
             if self.paths_replace_constant_velocity:
-                t_in, t_out, x_in = pt_in, pt_out, np.where(np.isfinite(pt_in), px_in, x_in)
+                # The path starts 0.4 s ahead: someone in the corridor now is in it now, whatever the path.
+                now = view.present & (np.abs(view.py) <= hw)
+                x_in = np.where(now, view.px, np.where(np.isfinite(pt_in), px_in, x_in))
+                t_in = np.where(now, 0.0, pt_in)
+                t_out = np.where(now, np.maximum(pt_out, PREDICTION_STEP), pt_out)
             else:
                 x_in = np.where(pt_in < t_in, px_in, x_in)
                 t_in = np.minimum(t_in, pt_in)
