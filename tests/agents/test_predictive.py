@@ -58,3 +58,24 @@ def test_predicted_paths_replace_constant_velocity() -> None:
     # The same predictor predicting a step into the lane: brake.
     paths[0, :, 1] = -2.2 + 1.0 * 0.4 * np.arange(1, 13)
     assert accel(PredictiveYielding()(dict(obs, predicted_paths=paths)))[0] < -2.0
+
+
+def test_closed_loop_with_the_oracle_intention_gives_way() -> None:
+    import gymnasium as gym
+
+    from agents import make_policy
+    from crossing_env.safety import EpisodeMetrics
+    from predictors.oracle import OracleIntention
+
+    env = OracleIntention(gym.make("crossing_env/Crossing-v0", scenario="zebra_case1"))
+    base = env.unwrapped
+    obs, _ = env.reset(seed=0)
+    policy = make_policy("predictive_yielding", scenario=base.scenario, dt=base.config.dt)
+    metrics = EpisodeMetrics(base.scenario, base.config.dt)
+    done = False
+    while not done:
+        obs, _, terminated, truncated, info = env.step(policy(obs))
+        metrics.update(info["ground_truth"])
+        done = terminated or truncated
+    r = metrics.result()
+    assert not r.collision and r.yield_obligations > 0 and r.yield_violations == 0
