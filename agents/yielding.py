@@ -13,7 +13,6 @@ import numpy as np
 from agents.config import CautiousConfig, YieldingConfig
 from agents.view import (
     EPS,
-    PREDICTION_STEP,
     ObsLike,
     View,
     corridor_interval,
@@ -140,11 +139,14 @@ class YieldingPolicy:
         if use_pred and view.paths is not None:
             pt_in, pt_out, px_in = path_interval(view.paths, view.present, hw, -front)
             if self.paths_replace_constant_velocity:
-                # The path starts 0.4 s ahead: someone in the corridor now is in it now, whatever the path.
-                now = view.present & (np.abs(view.py) <= hw)
-                x_in = np.where(now, view.px, np.where(np.isfinite(pt_in), px_in, x_in))
-                t_in = np.where(now, 0.0, pt_in)
-                t_out = np.where(now, np.maximum(pt_out, PREDICTION_STEP), pt_out)
+                # Paths alone, except where constant velocity puts the pedestrian in the corridor soon (or
+                # now): paths come from 0.4 s histories and lag a sudden start.
+                guard = t_in <= getattr(cfg, "constant_velocity_guard", np.inf)
+                x_in = np.where(guard & (t_in <= pt_in), x_in, np.where(np.isfinite(pt_in), px_in, x_in))
+                t_in, t_out = (
+                    np.where(guard, np.minimum(t_in, pt_in), pt_in),
+                    np.where(guard, np.maximum(t_out, pt_out), pt_out),
+                )
             else:
                 x_in = np.where(pt_in < t_in, px_in, x_in)
                 t_in = np.minimum(t_in, pt_in)

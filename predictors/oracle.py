@@ -6,7 +6,9 @@ read the unwrapped env's `World` when, and only when, someone wraps an env with 
 observation never carries ground truth, and the keys they add are the ones the real predictors add, so a
 policy cannot tell them apart except by their accuracy.
 
-- `OracleIntention` adds ``crossing_intention`` (K,): 1 for a pedestrian who truly intends to cross and
+- `OracleIntention` adds ``crossing_intention`` and ``crossing_intent`` (K,) with the same values (the
+  first is the key every intention predictor fills, the second says the value is the intent to cross at
+  all, not a near-term crossing probability): 1 for a pedestrian who truly intends to cross and
   has not crossed yet (states approaching / waiting / crossing), 0 for one who does not (or has already
   crossed), from the moment the intent was decided (`World.intent_decided_at`); before that the intent
   does not exist yet, and the slot gets ``undecided`` (0.5). Absent slots get 0.
@@ -97,6 +99,7 @@ class OracleIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         k = space.spaces["pedestrians"].shape[0]
         new = dict(space.spaces)
         new["crossing_intention"] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
+        new["crossing_intent"] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
         self.observation_space = spaces.Dict(new)
 
     def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -114,6 +117,7 @@ class OracleIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         out[present] = np.where(decided, to_cross.astype(np.float32), np.float32(self.undecided))
         result = dict(observation)
         result["crossing_intention"] = out
+        result["crossing_intent"] = out.copy()
         return result
 
 

@@ -79,6 +79,7 @@ def test_oracle_intention_is_the_true_intent() -> None:
         world = env.unwrapped.world
         slots = env.unwrapped._observer.last_slots
         assert env.observation_space.contains(obs)
+        np.testing.assert_array_equal(obs["crossing_intent"], obs["crossing_intention"])
         for k, p in enumerate(slots):
             if p < 0:
                 assert obs["crossing_intention"][k] == 0.0
@@ -88,7 +89,8 @@ def test_oracle_intention_is_the_true_intent() -> None:
             seen[float(truth)] += 1
     assert seen[0.0] and seen[1.0]  # both kinds of pedestrian occur
     # The plain env never carries it.
-    assert "crossing_intention" not in gym.make("crossing_env/Crossing-v0").observation_space.spaces
+    plain = gym.make("crossing_env/Crossing-v0").observation_space.spaces
+    assert "crossing_intention" not in plain and "crossing_intent" not in plain
 
 
 def test_oracle_intention_undecided_and_bad_arguments() -> None:
