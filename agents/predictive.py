@@ -15,7 +15,9 @@ variant lets a confident prediction *release* it, within the law, and trusts pre
   in a first grid run. Today only the oracle supplies ``crossing_intent``.
 - **Caution where it is due.** A pedestrian the near-term estimate expects to cross is treated as
   waiting (and anticipated to walk in) only within `anticipation_kerb_distance` of the kerb: standing at
-  it, not walking up the sidewalk.
+  it, not walking up the sidewalk; and not at a signalised crossing that shows the car green, where
+  people wait for their own signal (a dev grid run without this stopped the car for 40 s in front of
+  pedestrians the oracle said would cross — on their green).
 - **Paths instead of constant velocity.** Where ``predicted_paths`` exist, the conflict check uses them,
   and constant velocity only as a guard for pedestrians it puts in the ego's corridor within
   `constant_velocity_guard` seconds (paths built from 0.4 s histories lag a child who starts to run: a
@@ -57,8 +59,16 @@ class PredictiveYielding(YieldingPolicy):
         return view.on_road | view.on_crossing | stepping
 
     def _likely_to_cross(self, view: View, kerb_gap: np.ndarray) -> np.ndarray:
-        near_kerb = kerb_gap <= self.config.anticipation_kerb_distance
-        return super()._likely_to_cross(view, kerb_gap) & near_kerb
+        cfg = self.config
+        near_kerb = kerb_gap <= cfg.anticipation_kerb_distance
+        # At a signalised crossing showing the car green, people at the kerb wait for their own green:
+        # an intent to cross is no sign of stepping out now (a red-light runner is caught when it moves).
+        front = cfg.ego_length / 2
+        near_rel = front + view.to_stop[:, None] + cfg.stop_line_offset
+        far_rel = -view.past[:, None] - front
+        at_crossing = (view.px >= near_rel - cfg.kerb_margin) & (view.px <= far_rel + cfg.kerb_margin)
+        green = ((view.zebra < 0.5) & (view.car_green > 0.5) & (view.past < 0.0))[:, None]
+        return super()._likely_to_cross(view, kerb_gap) & near_kerb & ~(green & at_crossing)
 
     def _yield_waiting(
         self, view: View, waiting: np.ndarray, likely: np.ndarray | None, kerb_gap: np.ndarray
