@@ -12,9 +12,11 @@ from agents.config import (
     ConstantSpeedConfig,
     DrivingConfig,
     HighwayRuleConfig,
+    PredictiveYieldingConfig,
     TTCBrakeConfig,
     YieldingConfig,
 )
+from agents.predictive import PredictiveYielding
 from agents.registry import POLICIES, make_policy, policy_uses_predictors, scenario_settings
 from agents.yielding import AlwaysCautious, YieldingPolicy
 
@@ -27,6 +29,8 @@ __all__ = [
     "DrivingConfig",
     "HighwayEnvRule",
     "HighwayRuleConfig",
+    "PredictiveYielding",
+    "PredictiveYieldingConfig",
     "TTCBrakeConfig",
     "TTCEmergencyBrake",
     "YieldingConfig",

@@ -111,6 +111,28 @@ class YieldingConfig(DrivingConfig):
 
 
 @dataclass(frozen=True)
+class PredictiveYieldingConfig(YieldingConfig):
+    """Parameters of `PredictiveYielding` (the yielding rules plus release by prediction)."""
+
+    release_threshold: float = 0.2
+    """A pedestrian off the road whose ``crossing_intent`` (the intent to cross at all) is at most this is
+    confidently not crossing: not yielded to as waiting, unless stepping towards the road or on it. The
+    near-term ``crossing_intention`` never releases: it is low for a pedestrian who waits *because* the car
+    comes, to whom the car owes the way."""
+    stepping_speed: float = 0.3
+    """Speed (m/s) towards the road, near the kerb, at which a pedestrian visibly steps out (legal duty
+    whatever the prediction)."""
+    anticipation_kerb_distance: float = 1.0
+    """A pedestrian predicted to cross (``crossing_intention`` ≥ `intention_threshold`) is treated as waiting
+    and anticipated to walk in only this close (m) to the kerb: standing at it, not walking up the
+    sidewalk (whose walking line is 1.65 m from the kerb)."""
+    constant_velocity_guard: float = 2.0
+    """Predicted paths replace constant velocity in the conflict check, except that a pedestrian whom
+    constant velocity puts in the ego's lane corridor within this time (s) still counts: the paths come
+    from 0.4 s histories and lag a sudden run."""
+
+
+@dataclass(frozen=True)
 class TTCBrakeConfig(DrivingConfig):
     """Parameters of `TTCEmergencyBrake`."""
 

@@ -14,9 +14,11 @@ from agents.config import (
     ConstantSpeedConfig,
     DrivingConfig,
     HighwayRuleConfig,
+    PredictiveYieldingConfig,
     TTCBrakeConfig,
     YieldingConfig,
 )
+from agents.predictive import PredictiveYielding
 from agents.view import ObsLike
 from agents.yielding import AlwaysCautious, YieldingPolicy
 from scenarios.config import ScenarioConfig
@@ -25,6 +27,7 @@ Policy = Callable[[ObsLike], np.ndarray]
 
 _REGISTRY: dict[str, tuple[type, type[DrivingConfig]]] = {
     "yielding": (YieldingPolicy, YieldingConfig),
+    "predictive_yielding": (PredictiveYielding, PredictiveYieldingConfig),
     "constant_speed": (ConstantSpeed, ConstantSpeedConfig),
     "ttc_brake": (TTCEmergencyBrake, TTCBrakeConfig),
     "always_cautious": (AlwaysCautious, CautiousConfig),

@@ -49,6 +49,7 @@ class View:
     vehicles: np.ndarray  # (B, M, 7)
     intention: np.ndarray | None  # (B, K)
     paths: np.ndarray | None  # (B, K, T, 2)
+    intent: np.ndarray | None = None  # (B, K) P(means to cross at all), from ``crossing_intent`` if given
 
 
 def parse_observation(obs: ObsLike) -> View:
@@ -78,6 +79,9 @@ def parse_observation(obs: ObsLike) -> View:
     if paths is not None:
         paths = np.asarray(paths, dtype=np.float64)
         paths = paths.reshape(b, k, paths.shape[-2], 2)
+    intent = obs.get("crossing_intent")
+    if intent is not None:
+        intent = np.asarray(intent, dtype=np.float64).reshape(b, k)
     present = ped[..., 0] > 0.5
     return View(
         lead=lead,
@@ -97,6 +101,7 @@ def parse_observation(obs: ObsLike) -> View:
         vehicles=veh,
         intention=intention,
         paths=paths,
+        intent=intent,
     )
 
 

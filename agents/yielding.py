@@ -120,10 +120,8 @@ class YieldingPolicy:
         kerb_gap = np.minimum(np.abs(view.py - cfg.road_right), np.abs(view.py - cfg.road_left))
         slow = np.hypot(view.vx, view.vy) < cfg.waiting_speed
         waiting = (view.waiting | (view.present & slow & (kerb_gap <= cfg.kerb_distance))) & ~view.on_road
-        likely = None
-        if use_pred and view.intention is not None:
-            likely = (view.intention >= cfg.intention_threshold) & view.present & ~view.on_road
-            waiting = waiting | likely
+        likely = self._likely_to_cross(view, kerb_gap) if use_pred and view.intention is not None else None
+        waiting = self._yield_waiting(view, waiting, likely, kerb_gap)
         zebra = view.zebra[:, None] > 0.5
         legal_xing = (zebra & crossing_ahead & at_crossing & on_xing).any(axis=1)
         legal_wait = (zebra & crossing_ahead & at_crossing & waiting).any(axis=1)
@@ -140,9 +138,19 @@ class YieldingPolicy:
         x_in = view.px + view.vx * np.where(np.isfinite(t_in), np.minimum(t_in, cfg.horizon), 0.0)
         if use_pred and view.paths is not None:
             pt_in, pt_out, px_in = path_interval(view.paths, view.present, hw, -front)
-            x_in = np.where(pt_in < t_in, px_in, x_in)
-            t_in = np.minimum(t_in, pt_in)
-            t_out = np.maximum(t_out, pt_out)
+            if self.paths_replace_constant_velocity:
+                # Paths alone, except where constant velocity puts the pedestrian in the corridor soon (or
+                # now): paths come from 0.4 s histories and lag a sudden start.
+                guard = t_in <= getattr(cfg, "constant_velocity_guard", np.inf)
+                x_in = np.where(guard & (t_in <= pt_in), x_in, np.where(np.isfinite(pt_in), px_in, x_in))
+                t_in, t_out = (
+                    np.where(guard, np.minimum(t_in, pt_in), pt_in),
+                    np.where(guard, np.maximum(t_out, pt_out), pt_out),
+                )
+            else:
+                x_in = np.where(pt_in < t_in, px_in, x_in)
+                t_in = np.minimum(t_in, pt_in)
+                t_out = np.maximum(t_out, pt_out)
         if likely is not None:
             # Anticipation: a pedestrian the intention estimate expects to cross walks straight in.
             towards_lane = np.where(view.py > 0.0, -1.0, 1.0) * cfg.assumed_walking_speed
@@ -171,6 +179,20 @@ class YieldingPolicy:
         )
         ped_target = np.where(conflict, np.maximum(ped_target, 0.0), np.inf)
         return legal_target, ped_target.min(axis=1, initial=np.inf)
+
+    paths_replace_constant_velocity: ClassVar[bool] = False
+    """With ``predicted_paths``, check conflicts on the paths alone (True) or on their union with constant
+    velocity (False: predictions only ever add caution)."""
+
+    def _likely_to_cross(self, view: View, kerb_gap: np.ndarray) -> np.ndarray:
+        """(B, K) pedestrians off the road that the intention estimate expects to cross (hook)."""
+        return (view.intention >= self.config.intention_threshold) & view.present & ~view.on_road
+
+    def _yield_waiting(
+        self, view: View, waiting: np.ndarray, likely: np.ndarray | None, kerb_gap: np.ndarray
+    ) -> np.ndarray:
+        """(B, K) pedestrians the legal rule treats as waiting to cross (hook); here predictions only add."""
+        return waiting if likely is None else waiting | likely
 
     def _occlusion_cap(self, view: View) -> np.ndarray:
         """Acceleration (B,) that slows the car to `occlusion_speed` by the front of an occluding vehicle."""

@@ -128,6 +128,11 @@ class World:
         tr.despawn_finished()
         tr._arrivals(dt)
 
+    @property
+    def intent_decided_at(self) -> np.ndarray:
+        """Per pool slot: when its pedestrian's current intent was decided (s); NaN while undecided."""
+        return self.pedestrians.intent_time
+
     def _resize_new_pedestrians(self) -> None:
         peds = self.pedestrians
         for i in _resized(peds.state, self.physics.radius, peds.radius):

@@ -18,6 +18,7 @@ from typing import Any
 from agents import POLICIES
 from crossing_common.cli import DefaultsHelpFormatter, int_at_least, positive_float
 from crossing_common.folders import OutputFolderError, StagedFolder
+from crossing_eval.grid import parse_grid, run_grid_command
 from crossing_eval.outputs import write_outputs
 from crossing_eval.report import format_table, summarise
 from crossing_eval.runners import (
@@ -37,8 +38,11 @@ DEFAULT_SEED = 2024
 """Base seed of the default run."""
 DEFAULT_OUT = "crossing-eval-results"
 """Default output folder (relative to the working directory)."""
-PREDICTOR_CHOICES = ("s-cgru", "cvm", "none")
-INTENTION_CHOICES = ("qlb", "classical", "none")
+PREDICTOR_CHOICES = ("s-cgru", "cvm", "none", "oracle")
+INTENTION_CHOICES = ("qlb", "classical", "none", "oracle")
+"""'oracle' is privileged (reads the ground truth: an upper bound for the value-of-prediction table)."""
+GRID_POLICIES = ("yielding", "predictive_yielding")
+"""Policies of a `--grid` run unless `--policies` says otherwise."""
 
 
 def _int(text: str) -> int:
@@ -124,6 +128,15 @@ def build_parser() -> argparse.ArgumentParser:
         default="qlb",
         help="crossing-intention wrapper for policies that use predictions",
     )
+    parser.add_argument(
+        "--grid",
+        nargs="+",
+        default=None,
+        metavar="AXIS=A,B",
+        help="value-of-prediction grid: run every combination of e.g. intention=none,classical,qlb,oracle"
+        " predictor=none,cvm,s-cgru,oracle on the same seeds and write value_of_prediction.md/.csv/.png"
+        " (default policies: yielding,predictive_yielding)",
+    )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
 
@@ -156,7 +169,15 @@ def _resolve_policies(parser: argparse.ArgumentParser, names: list[str] | None) 
 def _parse(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> argparse.Namespace:
     """Parsed and checked arguments, with ``scenarios`` and ``policies`` resolved; bad ones exit with 2."""
     args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)
     args.scenarios = _resolve_scenarios(parser, args.scenarios)
+    if args.grid is not None:
+        try:
+            args.grid = parse_grid(args.grid, INTENTION_CHOICES, PREDICTOR_CHOICES)
+        except ValueError as exc:
+            parser.error(f"argument --grid: {exc}")
+        if args.policies is None:
+            args.policies = list(GRID_POLICIES)
     args.policies = _resolve_policies(parser, args.policies)
     if args.address is not None and args.backend != "ray":
         parser.error(f"argument --address: {args.address!r} needs --backend ray")
@@ -200,6 +221,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         return compare_main(argv[1:])
     args = _parse(build_parser(), argv)
+    if args.grid is not None:
+        return run_grid_command(args)
     # Every scenario file is read and validated before the first episode (and before any worker starts).
     try:
         for name in args.scenarios:

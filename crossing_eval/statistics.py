@@ -69,9 +69,9 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
     critical_pet_rate (episodes with a PET < `critical_pet`); simultaneous_occupancies; drac_crossing_mean /
     _max and drac_following_max; hard_brakes_per_episode (events), comfort_violations_per_episode (steps),
     max_deceleration_mean; yield_obligations, yield_compliance (= compliant / obligations) and
-    yield_compliance_ci95; pass_rate, mean_delay and mean_time_to_pass (episodes that passed);
-    mean_pedestrian_wait; mean_distance; world health, which the ego is not part of: background_collisions
-    (car–pedestrian contacts), background_collisions_legal (with a legal pedestrian),
+    yield_compliance_ci95; unneeded_stops_per_episode; pass_rate, mean_delay and mean_time_to_pass
+    (episodes that passed); mean_pedestrian_wait; mean_distance; world health, which the ego is not part of:
+    background_collisions (car–pedestrian contacts), background_collisions_legal (with a legal pedestrian),
     background_collision_rate and _ci95 (episodes with one, Wilson), background_collision_max_speed.
     """
     cfg = config if config is not None else MetricsConfig()
@@ -129,6 +129,7 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
         "yield_obligations": obligations,
         "yield_compliance": compliant / obligations if obligations else math.nan,
         "yield_compliance_ci95": wilson_interval(compliant, obligations),
+        "unneeded_stops_per_episode": float(col("unneeded_stops").mean()),
         "pass_rate": float(passed.mean()),
         "mean_delay": _mean(col("delay")),
         "mean_time_to_pass": _mean(col("time_to_pass")),

@@ -36,9 +36,11 @@ class EpisodeTask:
     seed: int
     """Seed given to `env.reset`."""
     predictor: str = "none"
-    """Trajectory predictor wrapper ('s-cgru', 'cvm' or 'none'); only for policies that use predictors."""
+    """Trajectory predictor wrapper ('s-cgru', 'cvm', 'none' or the privileged 'oracle'); only for policies
+    that use predictors."""
     intention: str = "none"
-    """Intention wrapper ('qlb', 'classical' or 'none'); only for policies that use predictors."""
+    """Intention wrapper ('qlb', 'classical', 'none' or the privileged 'oracle'); only for policies that use
+    predictors."""
 
 
 @dataclass
@@ -114,7 +116,12 @@ def build_env(scenario: str, predictor: str = "none", intention: str = "none") -
     """
     env = gym.make(ENV_ID, scenario=scenario)
     used: list[str] = []
-    if intention != "none":
+    if intention == "oracle":  # privileged upper bound (reads the world): only when asked for by name
+        from predictors.oracle import OracleIntention
+
+        env = OracleIntention(env)
+        used.append("intention:oracle")
+    elif intention != "none":
         # Imported here, not at the top: the predictor wrappers load torch, which `--help` must not wait for.
         try:
             from predictors import intention as intention_mod
@@ -128,7 +135,12 @@ def build_env(scenario: str, predictor: str = "none", intention: str = "none") -
             else:
                 env = cls(env)
                 used.append(f"intention:{intention}")
-    if predictor != "none":
+    if predictor == "oracle":  # privileged upper bound (reads the world): only when asked for by name
+        from predictors.oracle import OracleTrajectory
+
+        env = OracleTrajectory(env)
+        used.append("trajectory:oracle")
+    elif predictor != "none":
         try:
             from predictors.trajectory_wrapper import TrajectoryPrediction  # torch-heavy: see above
         except ImportError as exc:

@@ -97,7 +97,11 @@ def _policy_uses_predictors(name: str) -> bool:
 
 
 def _wrap_intention(env: Any, intention: str) -> Any:
-    """`env` under the ``predictors.intention`` wrapper named by ``--intention``."""
+    """`env` under the ``predictors.intention`` wrapper named by ``--intention`` (or the oracle)."""
+    if intention == "oracle":  # a crossing-eval log of the value-of-prediction grid's upper bound
+        from predictors.oracle import OracleIntention
+
+        return OracleIntention(env)
     if intention not in INTENTION_WRAPPERS:
         raise ReplayError(f"--intention {intention!r}: allowed {', '.join(INTENTION_WRAPPERS)}")
     cls = getattr(intention_module, INTENTION_WRAPPERS[intention], None)
@@ -109,7 +113,11 @@ def _wrap_intention(env: Any, intention: str) -> Any:
 
 
 def _wrap_predictor(env: Any, predictor: str) -> Any:
-    """`env` under the trajectory-prediction wrapper for model `predictor`."""
+    """`env` under the trajectory-prediction wrapper for model `predictor` (``oracle``: privileged paths)."""
+    if predictor == "oracle":
+        from predictors.oracle import OracleTrajectory
+
+        return OracleTrajectory(env)
     # Lazy: predictors.trajectory_wrapper imports torch, which `import crossing_replay` must not pay for.
     try:
         from predictors.trajectory_wrapper import TrajectoryPrediction

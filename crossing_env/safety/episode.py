@@ -23,6 +23,7 @@ from crossing_env.safety.geometry import (
     _slabs,
 )
 from crossing_env.safety.results import EpisodeResult, MetricsConfig
+from crossing_env.safety.stops import UnneededStops
 from crossing_env.types import ConflictArea, FloatArray, GroundTruth, PedState
 from scenarios.config import ScenarioConfig
 
@@ -123,9 +124,11 @@ class EpisodeMetrics:
       (crossed or turned back), or when the ego has stood still within `offer_distance` of the stop line
       for `offer_timeout` while the pedestrian kept waiting (declined offer); it is dropped (not counted)
       if the pedestrian leaves the kerb without crossing (state neither `WAITING` nor `CROSSING`, centre
-      off the road) before entering the ego's half. Obligations still open at the
-      end count as compliant. The German "influenced" test (pedestrian forced to slow down) is not
-      applied: it would need the pedestrian's desired speed, which the ground truth does not carry.
+      off the road) before entering the ego's half. Only pedestrians who intend to cross
+      (`GroundTruth.intends_to_cross`) open obligations, as the law's duty is to them. Obligations
+      still open at the end count as compliant. The German "influenced" test (pedestrian forced to slow
+      down) is not applied: it would need the pedestrian's desired speed, which the ground truth does
+      not carry.
     - Delay: from t = 0 at `EgoConfig.x` until the ego centre passes `conflict_area.x_max + delay_margin`
       (linear interpolation between steps), minus that distance at the speed limit.
     - Pedestrian waiting time: first step seen `WAITING` → first step seen `CROSSING`; 0 for pedestrians
@@ -198,6 +201,7 @@ class EpisodeMetrics:
         self._ca_arrays: tuple[np.ndarray, np.ndarray] = (np.zeros(2), np.zeros(2))
         self._size: tuple[float, float] = (math.nan, math.nan)
         self._half: np.ndarray | None = None
+        self._stops = UnneededStops(self.config, self.scenario.road.road_width)
 
     # -- per step -------------------------------------------------------------------------------------
 
@@ -280,6 +284,7 @@ class EpisodeMetrics:
             self._update_vehicles(gt, evx, self._half)
         if gt.pedestrian_ids.shape[0]:
             self._update_pedestrians(gt, t, ego_in, ego_entered, prev_ego_entry, front, speed, self._half)
+        self._stops.update(gt, speed, front, rear)
         self._time = t
 
     def _update_vehicles(self, gt: GroundTruth, evx: float, half: np.ndarray) -> None:
@@ -479,7 +484,7 @@ class EpisodeMetrics:
             if cfg.far_half_counts:
                 toward = (0.5 * (ca.half_y_min + ca.half_y_max) - py) * gt.pedestrian_velocities[:, 1] > 0.0
                 relevant |= gt.on_crossing & ~in_half & toward
-            new = (status == 0) & (relevant | waiting)
+            new = (status == 0) & (relevant | waiting) & gt.intends_to_cross  # the law's duty: to crossers
             status[new] = _OPEN
             entered_half |= new & in_half
 
@@ -506,6 +511,8 @@ class EpisodeMetrics:
         if not math.isnan(self._clear_time):
             trigger = 0.0 if math.isnan(self._trigger_time) else self._trigger_time
             ttp = self._clear_time - trigger
+        stops = self._stops
+        unneeded = stops.unneeded_so_far()
         pets_p = tuple(self._pets_ped_first)
         pets_e = tuple(self._pets_ego_first)
         return EpisodeResult(
@@ -549,6 +556,8 @@ class EpisodeMetrics:
             distance_travelled=self._last_x - self._start_x,
             pedestrian_wait_times=tuple(self._waits),
             censored_waits=int(np.count_nonzero(~np.isnan(self._peds.wait_start))),
+            stops=stops.stops,
+            unneeded_stops=unneeded,
         )
 
 

@@ -59,7 +59,16 @@ class MetricsConfig:
     offer_timeout: float = 3.0
     """Stopped time (s) after which a still-waiting pedestrian is taken to have declined the offer; the
     obligation then ends as compliant (the car may go)."""
+    unneeded_stop_speed: float = 0.5
+    """The ego counts as stopping (`EpisodeResult.unneeded_stops`) when its speed falls below this (m/s)."""
+    stop_attribution_distance: float = 5.0
+    """Pedestrians within this distance (m) of the crossing along the road can be the reason for a stop."""
+    stop_attribution_lateral: float = 3.0
+    """... and within this distance (m) of a kerb, on the sidewalk."""
 
+
+# Fields added later, with defaults: older logs without them still load.
+_OPTIONAL_FIELDS = frozenset({"stops", "unneeded_stops"})
 
 # Fields whose "missing" value means "never happened" (inf) rather than "undefined" (nan).
 _INF_FIELDS = frozenset(
@@ -158,6 +167,10 @@ class EpisodeResult:
     """Kerb arrival → stepping off, for each pedestrian who stepped off (0 if it did not stop)."""
     censored_waits: int
     """Pedestrians still waiting at the end of the episode (not in `pedestrian_wait_times`)."""
+    stops: int = 0
+    """Stops near the crossing with a pedestrian at the kerb as a possible reason (`safety.stops`)."""
+    unneeded_stops: int = 0
+    """Of those, stops for pedestrians who then did not step onto the road in front of the ego."""
 
     @property
     def yield_compliance(self) -> float:
@@ -173,6 +186,8 @@ class EpisodeResult:
         """Inverse of `as_dict`: None becomes inf for the min-TTC/PET/separation fields, nan otherwise."""
         kwargs: dict[str, Any] = {}
         for f in fields(cls):
+            if f.name not in data and f.name in _OPTIONAL_FIELDS:
+                continue  # logs written before the field existed
             if f.name not in data:
                 raise ValueError(f"EpisodeResult.from_dict: missing field {f.name!r}")
             value = data[f.name]

@@ -256,7 +256,14 @@ def test_policies_work_batched(name: str) -> None:
 
 
 def test_registry() -> None:
-    assert set(POLICIES) == {"yielding", "constant_speed", "ttc_brake", "always_cautious", "highway_rule"}
+    assert set(POLICIES) == {
+        "yielding",
+        "predictive_yielding",
+        "constant_speed",
+        "ttc_brake",
+        "always_cautious",
+        "highway_rule",
+    }
     with pytest.raises(ValueError, match="unknown policy 'nope'"):
         make_policy("nope")
     with pytest.raises(ValueError, match="bogus"):

@@ -50,6 +50,7 @@ class Ped:
     radius: float = 0.28
     state: int | None = None
     waiting: bool | None = None
+    intends: bool = True
 
 
 @dataclass
@@ -104,9 +105,9 @@ def make_gt(
         pedestrian_velocities=np.array([p.vel for p in peds], dtype=float).reshape(-1, 2),
         pedestrian_radii=np.array([p.radius for p in peds], dtype=float),
         pedestrian_states=states,
-        intends_to_cross=np.ones(len(peds), dtype=bool),
+        intends_to_cross=np.array([p.intends for p in peds], dtype=bool),
         intent_decided_at=np.zeros(len(peds)),
-        is_bystander=np.zeros(len(peds), dtype=bool),
+        is_bystander=np.array([not p.intends for p in peds], dtype=bool),
         on_crossing=on_crossing,
         on_road=on_road,
         waiting=waiting,

@@ -1,0 +1,69 @@
+"""Cost of the privileged oracle predictors against the bare env and the S-CGRU wrapper, in one run.
+
+The trajectory oracle copies the world and rolls it 4.8 s ahead every 0.4 s (`predictors.oracle`), so it
+is the dear one; this prints env steps/s with a hold-speed ego for each wrapper on the same seeds, and the
+ratio to the bare env (interleaved per seed, so machine noise hits every wrapper alike).
+
+    python benchmarks/oracle_cost.py [--scenarios busy_zebra zebra_case1] [--seeds 3]
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections.abc import Callable
+
+import gymnasium as gym
+import numpy as np
+
+import crossing_env  # noqa: F401 - registers the env
+from predictors.oracle import OracleIntention, OracleTrajectory
+from predictors.trajectory_wrapper import TrajectoryPrediction
+
+WRAPPERS: dict[str, Callable[[gym.Env], gym.Env]] = {
+    "bare": lambda e: e,
+    "oracle intention": OracleIntention,
+    "s-cgru paths": TrajectoryPrediction,
+    "oracle paths": OracleTrajectory,
+}
+
+
+def _episode(env: gym.Env, seed: int) -> tuple[int, float]:
+    hold = np.zeros(1, np.float32)
+    env.reset(seed=seed)
+    steps, done, t = 0, False, time.perf_counter()
+    while not done:
+        _, _, term, trunc, _ = env.step(hold)
+        steps += 1
+        done = term or trunc
+    return steps, time.perf_counter() - t
+
+
+def main() -> None:
+    """Print steps/s per wrapper and scenario, and the ratio to the bare env."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenarios", nargs="+", default=["busy_zebra", "zebra_case1"])
+    parser.add_argument("--seeds", type=int, default=3)
+    args = parser.parse_args()
+    for sc in args.scenarios:
+        envs = {
+            name: wrap(gym.make("crossing_env/Crossing-v0", scenario=sc)) for name, wrap in WRAPPERS.items()
+        }
+        _episode(envs["bare"], 0)  # warm up (kernel loading)
+        totals = {name: [0, 0.0] for name in envs}
+        for seed in range(args.seeds):
+            for name, env in envs.items():
+                n, dt = _episode(env, seed)
+                totals[name][0] += n
+                totals[name][1] += dt
+        bare = totals["bare"][0] / totals["bare"][1]
+        for name, (n, dt) in totals.items():
+            rate = n / dt
+            print(
+                f"{sc:14s} {name:17s} {rate:8.1f} steps/s  {1e3 / rate:6.2f} ms/step"
+                f"  {bare / rate:6.1f}x bare"
+            )
+
+
+if __name__ == "__main__":
+    main()

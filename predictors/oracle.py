@@ -1,0 +1,197 @@
+"""Oracle predictors: PRIVILEGED upper bounds that read the simulator's ground truth. Never a default.
+
+They answer "how much could a perfect prediction be worth?" in the value-of-prediction table
+(`crossing-eval --grid`, `--intention oracle`, `--predictor oracle`). They are observation wrappers that
+read the unwrapped env's `World` when, and only when, someone wraps an env with them; the env's own
+observation never carries ground truth, and the keys they add are the ones the real predictors add, so a
+policy cannot tell them apart except by their accuracy.
+
+- `OracleIntention` adds ``crossing_intention`` and ``crossing_intent`` (K,) with the same values (the
+  first is the key every intention predictor fills, the second says the value is the intent to cross at
+  all, not a near-term crossing probability): 1 for a pedestrian who truly intends to cross and
+  has not crossed yet (states approaching / waiting / crossing), 0 for one who does not (or has already
+  crossed), from the moment the intent was decided (`World.intent_decided_at`); before that the intent
+  does not exist yet, and the slot gets ``undecided`` (0.5). Absent slots get 0.
+- `OracleTrajectory` adds ``predicted_paths`` (K, 12, 2): each pedestrian's true next 12 positions at
+  0.4 s, in the observation's frame (relative to the ego's current centre). The future depends on what the
+  ego will do, so "true" is defined as the future of a copy of the world rolled forward with the ego
+  holding its current speed (action 0): with a constant-speed ego the paths equal the recorded future
+  exactly (tested). The copy carries its own copy of the random generator, so the rollout never changes
+  the real episode. Cost: a rollout copies the world (the pymunk space dominates, about 0.1 s with a
+  busy zebra's pools) and steps it 4.8 s ahead, so it runs every `refresh_steps` env steps (default 4 =
+  0.4 s) and in between the cached rollout is read at the right time offset (exact for a constant-speed
+  ego), or at once when a pedestrian appears that the cached rollout does not hold.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from crossing_env import physics
+from crossing_env.pedestrians.transitions import APPROACHING, CROSSING, WAITING
+
+__all__ = ["OracleIntention", "OracleTrajectory", "rollout_pedestrians"]
+
+PRED_LEN = 12
+"""Predicted positions per pedestrian (the ETH/UCY protocol: 12 at 0.4 s)."""
+PRED_INTERVAL = 0.4
+"""Seconds between predicted positions."""
+MAX_STEP = 3.0
+"""Largest distance (m) a pedestrian covers in one 0.4 s step, for the space's bound (as the S-CGRU
+wrapper's)."""
+
+
+def _world(env: gym.Env) -> Any:
+    world = getattr(env.unwrapped, "world", None)
+    if world is None:
+        raise RuntimeError("oracle predictors read the crossing_env world: call reset() first")
+    return world
+
+
+def _slots(env: gym.Env) -> np.ndarray:
+    """Pool slot shown in each observation slot (−1 = empty)."""
+    return env.unwrapped._observer.last_slots
+
+
+def rollout_pedestrians(world: Any, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """Roll a copy of `world` forward `steps` steps with the ego holding its speed.
+
+    Returns (ids, positions): (steps + 1, P) pedestrian ids per pool slot (−1 where inactive) and
+    (steps + 1, P, 2) positions, index 0 being the current state. `world` itself is not touched.
+    """
+    # Share what never changes within an episode and the process-wide pymunk batch buffers (not copyable).
+    memo = {id(x): x for x in (physics._SET_BUFFER, physics._GET_BUFFER, world.scenario, world.config)}
+    memo[id(world.geometry)] = world.geometry
+    sim = copy.deepcopy(world, memo)
+    peds = sim.pedestrians
+    cap = peds.capacity
+    ids = np.full((steps + 1, cap), -1, dtype=np.int64)
+    pos = np.zeros((steps + 1, cap, 2))
+    for s in range(steps + 1):
+        if s:
+            sim.step(0.0)
+        act = peds.state != 0
+        ids[s] = np.where(act, peds.ids, -1)
+        pos[s] = peds.position
+    return ids, pos
+
+
+class OracleIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
+    """PRIVILEGED: the true crossing intent as ``crossing_intention`` (see the module docstring)."""
+
+    privileged: ClassVar[bool] = True
+    """Reads the ground truth: an upper bound for evaluation, never a sensor model."""
+
+    def __init__(self, env: gym.Env, undecided: float = 0.5) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self, undecided=undecided)
+        gym.ObservationWrapper.__init__(self, env)
+        if not 0.0 <= undecided <= 1.0:
+            raise ValueError(f"OracleIntention: undecided must be a probability in [0, 1], got {undecided}")
+        space = env.observation_space
+        if not isinstance(space, spaces.Dict) or "pedestrians" not in space.spaces:
+            raise ValueError(f"OracleIntention needs a crossing_env Dict observation, got {space}")
+        self.undecided = float(undecided)
+        k = space.spaces["pedestrians"].shape[0]
+        new = dict(space.spaces)
+        new["crossing_intention"] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
+        new["crossing_intent"] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
+        self.observation_space = spaces.Dict(new)
+
+    def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """The observation with the true intent of each slot's pedestrian added."""
+        world = _world(self.env)
+        peds = world.pedestrians
+        slots = _slots(self.env)
+        k = slots.shape[0]
+        out = np.zeros(k, dtype=np.float32)
+        present = slots >= 0
+        p = slots[present]
+        decided = world.intent_decided_at[p] <= world.time + 1e-9  # NaN (undecided) compares False
+        state = peds.state[p]
+        to_cross = peds.intends[p] & ((state == APPROACHING) | (state == WAITING) | (state == CROSSING))
+        out[present] = np.where(decided, to_cross.astype(np.float32), np.float32(self.undecided))
+        result = dict(observation)
+        result["crossing_intention"] = out
+        result["crossing_intent"] = out.copy()
+        return result
+
+
+class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
+    """PRIVILEGED: each pedestrian's true next 12 positions as ``predicted_paths`` (module docstring)."""
+
+    privileged: ClassVar[bool] = True
+    """Reads the ground truth: an upper bound for evaluation, never a sensor model."""
+
+    def __init__(self, env: gym.Env, refresh_steps: int = 4) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self, refresh_steps=refresh_steps)
+        gym.ObservationWrapper.__init__(self, env)
+        space = env.observation_space
+        hist = space.spaces.get("pedestrian_history") if isinstance(space, spaces.Dict) else None
+        if not isinstance(hist, spaces.Box) or len(hist.shape) != 3:
+            raise ValueError(
+                f"OracleTrajectory needs 'pedestrian_history' (K, T, 2) in the observation, got {space}"
+            )
+        if not (isinstance(refresh_steps, int) and refresh_steps >= 1):
+            raise ValueError(
+                f"OracleTrajectory: refresh_steps must be an integer >= 1, got {refresh_steps!r}"
+            )
+        self.refresh_steps = refresh_steps
+        self.num_slots = hist.shape[0]
+        bound = float(max(np.abs(hist.low).max(), np.abs(hist.high).max())) + PRED_LEN * MAX_STEP
+        self.bound = np.float32(bound) if np.isfinite(bound) else np.float32(np.finfo(np.float32).max)
+        new = dict(space.spaces)
+        new["predicted_paths"] = spaces.Box(
+            -self.bound, self.bound, (self.num_slots, PRED_LEN, 2), np.float32
+        )
+        self.observation_space = spaces.Dict(new)
+        self._cache: tuple[int, np.ndarray, np.ndarray] | None = None  # (start step, ids, positions)
+        self.rollouts = 0
+        """Rollouts run so far (each copies the world and steps it 4.8 s + refresh ahead)."""
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
+        """Reset the env and forget the cached rollout."""
+        self._cache = None
+        return super().reset(seed=seed, options=options)
+
+    def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """The observation with the true future paths of the present slots added."""
+        world = _world(self.env)
+        peds = world.pedestrians
+        slots = _slots(self.env)
+        step = round(world.time / world.dt)
+        every = round(PRED_INTERVAL / world.dt)
+        paths = np.zeros((self.num_slots, PRED_LEN, 2), np.float32)
+        present = np.flatnonzero(slots >= 0)
+        if present.size:
+            p = slots[present]
+            want = peds.ids[p]
+            cache = self._cache
+            offset = -1 if cache is None else step - cache[0]
+            if (
+                cache is None
+                or offset >= self.refresh_steps
+                or offset < 0
+                or not np.all(cache[1][offset, p] == want)
+            ):
+                ids, pos = rollout_pedestrians(world, PRED_LEN * every + self.refresh_steps - 1)
+                self._cache = cache = (step, ids, pos)
+                self.rollouts += 1
+                offset = 0
+            _, ids, pos = cache
+            rows = offset + every * np.arange(1, PRED_LEN + 1)  # (12,)
+            future = pos[rows][:, p]  # (12, n, 2)
+            alive = ids[rows][:, p] == want[None, :]  # a pedestrian who leaves keeps its last position
+            for j in range(1, PRED_LEN):
+                future[j] = np.where(alive[j][:, None], future[j], future[j - 1])
+            ego = world.ego_position
+            paths[present] = np.transpose(future - ego, (1, 0, 2)).astype(np.float32)
+        out = dict(observation)
+        out["predicted_paths"] = np.clip(paths, -self.bound, self.bound)
+        return out
