@@ -15,9 +15,15 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from agents import POLICIES
 from crossing_common.cli import int_at_least
 from crossing_eval.outputs import write_outputs
+from crossing_eval.plugins import (
+    PREDICTOR_NAMES,
+    default_policies,
+    policies_help,
+    policy_spec,
+    predictor_spec,
+)
 from crossing_eval.report import format_table, summarise
 from crossing_eval.runners import default_workers, run_tasks
 from crossing_eval.tasks import EpisodeRecord, make_tasks
@@ -29,7 +35,7 @@ DEFAULT_SEED = 2024
 """Base seed of the default run."""
 DEFAULT_OUT = "crossing-eval-results"
 """Default output folder (relative to the working directory)."""
-PREDICTOR_CHOICES = ("s-cgru", "cvm", "none")
+PREDICTOR_CHOICES = PREDICTOR_NAMES
 INTENTION_CHOICES = ("qlb", "classical", "none")
 
 
@@ -63,7 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--policies",
         type=_names,
         default=None,
-        help="comma-separated policy names (default: all): see agents.POLICIES",
+        help=policies_help(),
     )
     parser.add_argument(
         "--episodes",
@@ -96,9 +102,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--predictor",
-        choices=PREDICTOR_CHOICES,
+        type=_predictor,
         default="s-cgru",
-        help="trajectory predictor wrapper for policies that use predictions (default s-cgru)",
+        help="trajectory predictor wrapper for policies that use predictions: "
+        f"{', '.join(PREDICTOR_CHOICES)} or a checkpoint file (default s-cgru)",
     )
     parser.add_argument(
         "--intention",
@@ -126,13 +133,26 @@ def _resolve_scenarios(parser: argparse.ArgumentParser, names: list[str] | None)
     return sorted(dict.fromkeys(out))
 
 
+def _predictor(text: str) -> str:
+    try:
+        return predictor_spec(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _resolve_policies(parser: argparse.ArgumentParser, names: list[str] | None) -> list[str]:
     if names is None:
-        return list(POLICIES)
+        policies, note = default_policies()
+        if note:
+            print(f"crossing-eval: {note}", file=sys.stderr)
+        return policies
+    out = []
     for name in names:
-        if name not in POLICIES:
-            parser.error(f"argument --policies: unknown policy {name!r}; choose from {', '.join(POLICIES)}")
-    return [p for p in POLICIES if p in names]
+        try:
+            out.append(policy_spec(name))
+        except ValueError as exc:
+            parser.error(f"argument --policies: {exc}")
+    return list(dict.fromkeys(out))
 
 
 def _parse(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> argparse.Namespace:
