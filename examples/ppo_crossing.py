@@ -190,7 +190,7 @@ class EpisodeLog:
                         )  # fmt: skip
                 return True
 
-        self.file = path.open("w", newline="")
+        self.file = path.open("w", newline="", buffering=1)  # line-buffered: readable while training
         self.writer = csv.writer(self.file)
         self.writer.writerow(self.FIELDS)
         self.callback = _Callback()
@@ -259,7 +259,12 @@ def plot_learning_curve(episodes_csv: Path, png: Path, window: int = 200) -> Non
 
     with episodes_csv.open() as fh:
         rows = list(csv.DictReader(fh))
-    if not rows:
+    if not rows:  # too short a run to finish an episode: an empty figure that says so
+        fig, ax = plt.subplots(figsize=(6, 2))
+        ax.text(0.5, 0.5, "no finished training episode yet", ha="center", va="center")
+        ax.set_axis_off()
+        fig.savefig(png, dpi=90)
+        plt.close(fig)
         return
     step = np.array([float(r["step"]) for r in rows])
     ret = np.array([float(r["return"]) for r in rows])
@@ -352,7 +357,10 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     model.save(args.out / "step_0.zip")
     venv.save(str(args.out / "step_0.vecnormalize.pkl"))
-    model.learn(total_timesteps=args.timesteps, callback=CallbackList(callbacks), progress_bar=args.progress)
+    try:
+        model.learn(args.timesteps, callback=CallbackList(callbacks), progress_bar=args.progress)
+    except KeyboardInterrupt:  # Ctrl-C stops training early; what was learnt is still saved and evaluated
+        print(f"interrupted at {model.num_timesteps} steps", file=sys.stderr)
     train_s = time.perf_counter() - t0
     log.close()
     print(
