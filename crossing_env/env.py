@@ -2,7 +2,11 @@
 
 The env is a thin template around `World`: `reset` builds the world from a scenario with the env's RNG;
 `step` applies the action → advances the world → observes → computes named reward terms →
-terminated (collision, end of road) / truncated (scenario duration).
+terminated (collision, end of road) / truncated (scenario duration), both Python bools.
+
+Change logs:
+    - Reward terms (`crossing_env.reward`) use the evaluation's yield, TTC and braking definitions; new
+      `time` and `near_miss` terms; `failing_to_yield` counts `crossing-eval`'s violated obligations.
 """
 
 from __future__ import annotations
@@ -86,6 +90,7 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
         self._observer = ObservationBuilder(self.scenario, self.config.observation)
         self.observation_space = self._observer.space
         self.world: World | None = None
+        self._reward_terms: RewardTerms | None = None
         self._renderer = None
 
     # ------------------------------------------------------------------ Gymnasium API
@@ -122,6 +127,7 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
         x_before = world.traffic.x[0]
         world.step(accel)
         gt = world.ground_truth()
+        assert self._reward_terms is not None  # set with the world in reset()
         rewards = self._reward_terms(gt, float(world.traffic.x[0] - x_before))
         terminated = bool(gt.collisions) or bool(
             world.traffic.x[0] >= self.scenario.road.length - END_OF_ROAD_MARGIN
