@@ -30,7 +30,7 @@ from crossing_eval.tasks import EpisodeRecord, make_tasks
 from scenarios import list_scenarios
 
 DEFAULT_EPISODES = 5
-"""Episodes per (scenario, policy) in the default run: 8 scenarios x 5 seeds x 5 policies = 200 episodes."""
+"""Episodes per (scenario, policy) in the default run: 8 scenarios x 5 seeds x 6 policies = 240 episodes."""
 DEFAULT_SEED = 2024
 """Base seed of the default run."""
 DEFAULT_OUT = "crossing-eval-results"
