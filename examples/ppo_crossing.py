@@ -9,10 +9,11 @@ standardises the observation (positions reach ±500 m) and the reward. Envs run 
 default (``--subproc`` for worker processes; on a 2-core machine they cost more than they save).
 
 Outputs in ``--out``: ``model.zip`` + ``model.vecnormalize.pkl`` (the pair ``crossing-eval --policies
-sb3:OUT/model.zip`` loads), ``best.zip`` + stats (best periodic evaluation), ``progress.csv`` (SB3's
-logger), ``episodes.csv`` (one row per training episode: return, collision, yield obligations and
-violations, delay) and ``learning_curve.png``. The final evaluation runs `crossing-eval`'s own episode
-code (`crossing_eval.tasks`) on its default seeds and prints the mean return with the metrics.
+sb3:OUT/model.zip`` loads), ``step_N.zip`` + statistics (checkpoints every ``--eval-every`` steps, to
+select from), ``progress.csv`` (SB3's logger), ``episodes.csv`` (one row per training episode: return,
+collision, yield obligations and violations, delay) and ``learning_curve.png``. The final evaluation
+runs `crossing-eval`'s own episode code (`crossing_eval.tasks`) on its default seeds and prints the mean
+return with the metrics.
 """
 
 from __future__ import annotations
@@ -60,7 +61,7 @@ class Args:
     seed: int = 0
     """Seed of PPO and the envs."""
     eval_every: int = 50_000
-    """Steps between periodic evaluations that keep the best checkpoint (0: never)."""
+    """Steps between checkpoints (``step_N.zip`` + statistics) to select the shipped policy from (0: none)."""
     eval_episodes: int = 5
     """Episodes per scenario in the final evaluation (0 = skip), on `crossing-eval`'s default seeds."""
     out: Path = Path("runs/ppo")
@@ -92,7 +93,7 @@ def parse_args(argv: list[str] | None = None) -> Args:
     )
     p.add_argument("--log-std-init", type=float, default=d.log_std_init, help="initial log std of actions")
     p.add_argument("--seed", type=int, default=d.seed, help="random seed")
-    p.add_argument("--eval-every", type=non_negative, default=d.eval_every, help="steps between evaluations")
+    p.add_argument("--eval-every", type=non_negative, default=d.eval_every, help="steps between checkpoints")
     p.add_argument(
         "--eval-episodes", type=non_negative, default=d.eval_episodes, help="final evaluation episodes each"
     )
