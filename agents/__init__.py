@@ -1,7 +1,8 @@
 """Driving policies for `crossing_env/Crossing-v0`: callables `policy(obs) -> action`, and their registry.
 
 Every policy reads only the observation (never the ground truth). `make_policy("yielding", scenario=cfg)`
-builds a registered one; `POLICIES` lists the names.
+builds a registered one; `POLICIES` lists the default table, `register_policy` adds one, and
+`make_policy` also takes ``"pkg.module:attr"`` and ``"sb3:model.zip"`` plug-ins (`agents.registry`).
 """
 
 from __future__ import annotations
@@ -17,10 +18,21 @@ from agents.config import (
     YieldingConfig,
 )
 from agents.predictive import PredictiveYielding
-from agents.registry import POLICIES, make_policy, policy_uses_predictors, scenario_settings
+from agents.registry import (
+    BUILTIN_POLICIES,
+    ENTRY_POINT_GROUP,
+    POLICIES,
+    make_policy,
+    policy_names,
+    policy_uses_predictors,
+    register_policy,
+    scenario_settings,
+)
 from agents.yielding import AlwaysCautious, YieldingPolicy
 
 __all__ = [
+    "BUILTIN_POLICIES",
+    "ENTRY_POINT_GROUP",
     "POLICIES",
     "AlwaysCautious",
     "CautiousConfig",
@@ -36,6 +48,8 @@ __all__ = [
     "YieldingConfig",
     "YieldingPolicy",
     "make_policy",
+    "policy_names",
     "policy_uses_predictors",
+    "register_policy",
     "scenario_settings",
 ]

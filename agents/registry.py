@@ -1,9 +1,24 @@
-"""The policy registry: names → (policy class, config class), and `make_policy` to build one by name."""
+"""The policy registry: names → policy factories, and `make_policy` to build one by name or plug-in spec.
+
+A policy is a callable ``policy(obs) -> action`` (float32, shape (1,)) that reads only the observation;
+a class attribute ``uses_predictors = True`` asks the evaluation for the prediction wrappers. Besides the
+built-in names, `make_policy` accepts (also inside worker processes and Ray tasks, which get the spec
+string, never a live object):
+
+- a name registered with `register_policy` in this process,
+- a name from the ``crossing_env.policies`` entry-point group of installed packages,
+- ``"pkg.module:attr"``: a policy class whose constructor takes its config (``attr.config_class``, a
+  `DrivingConfig` subclass, as the built-ins) or a factory called as ``attr(scenario=..., dt=...)``,
+- ``"sb3:path/model.zip"``: a Stable-Baselines3 model (`agents.sb3.SB3Policy`, the ``rl`` extra).
+"""
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
-from dataclasses import fields, replace
+from dataclasses import dataclass, fields, replace
+from importlib.metadata import entry_points
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -25,16 +40,142 @@ from scenarios.config import ScenarioConfig
 
 Policy = Callable[[ObsLike], np.ndarray]
 
-_REGISTRY: dict[str, tuple[type, type[DrivingConfig]]] = {
-    "yielding": (YieldingPolicy, YieldingConfig),
-    "predictive_yielding": (PredictiveYielding, PredictiveYieldingConfig),
-    "constant_speed": (ConstantSpeed, ConstantSpeedConfig),
-    "ttc_brake": (TTCEmergencyBrake, TTCBrakeConfig),
-    "always_cautious": (AlwaysCautious, CautiousConfig),
-    "highway_rule": (HighwayEnvRule, HighwayRuleConfig),
+ENTRY_POINT_GROUP = "crossing_env.policies"
+"""Entry-point group under which installed packages publish policies (value: ``"pkg.module:attr"``)."""
+SHIPPED_PPO = Path(__file__).resolve().parent / "weights" / "ppo.zip"
+"""The shipped PPO policy (Stable-Baselines3 zip and its VecNormalize statistics beside it)."""
+
+
+@dataclass(frozen=True)
+class PolicyEntry:
+    """How to build a policy: a class taking `config` (built-in protocol) or a factory(scenario, dt)."""
+
+    factory: Callable[..., Any]
+    """The policy class (with `config`) or factory called as ``factory(scenario=..., dt=...)``."""
+    config: type[DrivingConfig] | None = None
+    """The class's config dataclass; None for a factory."""
+    uses_predictors: bool | None = None
+    """Whether it reads the prediction wrappers' keys; None: the factory's ``uses_predictors`` attribute."""
+
+
+_REGISTRY: dict[str, PolicyEntry] = {
+    "yielding": PolicyEntry(YieldingPolicy, YieldingConfig),
+    "predictive_yielding": PolicyEntry(PredictiveYielding, PredictiveYieldingConfig),
+    "constant_speed": PolicyEntry(ConstantSpeed, ConstantSpeedConfig),
+    "ttc_brake": PolicyEntry(TTCEmergencyBrake, TTCBrakeConfig),
+    "always_cautious": PolicyEntry(AlwaysCautious, CautiousConfig),
+    "highway_rule": PolicyEntry(HighwayEnvRule, HighwayRuleConfig),
 }
-POLICIES: tuple[str, ...] = tuple(_REGISTRY)
-"""Names accepted by `make_policy` (and `crossing-eval --policies`)."""
+BUILTIN_POLICIES: tuple[str, ...] = tuple(_REGISTRY)
+"""The rule-based policies (always available)."""
+POLICIES: tuple[str, ...] = (*BUILTIN_POLICIES, "ppo")
+"""The default table of `crossing-eval`: the rule-based policies and the shipped PPO (``rl`` extra)."""
+
+
+def _shipped_ppo(scenario: ScenarioConfig | None = None, dt: float | None = None) -> Policy:
+    """The PPO policy shipped in ``agents/weights/ppo.zip``."""
+    from agents.sb3 import SB3Policy
+
+    return SB3Policy(SHIPPED_PPO)
+
+
+_REGISTRY["ppo"] = PolicyEntry(_shipped_ppo, None, uses_predictors=False)
+
+
+def register_policy(
+    name: str,
+    factory: Callable[..., Any],
+    config: type[DrivingConfig] | None = None,
+    *,
+    uses_predictors: bool | None = None,
+    overwrite: bool = False,
+) -> None:
+    """Make `name` available to `make_policy` (and `crossing-eval --policies`) in this process.
+
+    `factory` is a policy class built from `config` (a `DrivingConfig` subclass, like the built-ins) or,
+    with `config=None`, a callable ``factory(scenario=ScenarioConfig, dt=float) -> policy``. Worker
+    processes only know names registered at import time of a module they import: for `crossing-eval`
+    with several workers or Ray, publish the policy as ``pkg.module:attr`` or as an entry point.
+
+    Raises:
+        ValueError: the name is taken (unless `overwrite`), malformed, or `factory` is not callable.
+    """
+    if not isinstance(name, str) or not name or ":" in name or "," in name:
+        raise ValueError(f"register_policy: name must be a non-empty string without ':' or ',', got {name!r}")
+    if not callable(factory):
+        raise ValueError(f"register_policy({name!r}): factory must be callable, got {factory!r}")
+    if name in _REGISTRY and not overwrite:
+        raise ValueError(f"register_policy: {name!r} is already registered (pass overwrite=True to replace)")
+    _REGISTRY[name] = PolicyEntry(factory, config, uses_predictors)
+
+
+def _entry_points() -> dict[str, str]:
+    return {ep.name: ep.value for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def policy_names() -> tuple[str, ...]:
+    """Every name `make_policy` accepts now: registered ones, then installed entry points."""
+    return tuple(dict.fromkeys([*_REGISTRY, *_entry_points()]))
+
+
+def _import_attr(spec: str) -> Any:
+    module, _, attr = spec.partition(":")
+    if not module or not attr:
+        raise ValueError(f"policy {spec!r}: expected 'pkg.module:attr'")
+    try:
+        obj: Any = importlib.import_module(module)
+    except ImportError as exc:
+        raise ValueError(f"policy {spec!r}: cannot import module {module!r} ({exc})") from None
+    for part in attr.split("."):
+        if not hasattr(obj, part):
+            raise ValueError(f"policy {spec!r}: module {module!r} has no attribute {attr!r}")
+        obj = getattr(obj, part)
+    if not callable(obj):
+        raise ValueError(f"policy {spec!r}: {attr!r} is not a class or factory")
+    return obj
+
+
+def _plugin_entry(obj: Any) -> PolicyEntry:
+    cfg = getattr(obj, "config_class", None)
+    if isinstance(obj, type) and isinstance(cfg, type) and issubclass(cfg, DrivingConfig):
+        return PolicyEntry(obj, cfg)
+    return PolicyEntry(obj, None)
+
+
+def _sb3_entry(spec: str) -> PolicyEntry:
+    path = spec[len("sb3:") :]
+    if not path:
+        raise ValueError(f"policy {spec!r}: expected 'sb3:path/to/model.zip'")
+    if not Path(path).is_file():
+        raise ValueError(f"policy {spec!r}: no such file {path!r}")
+
+    def factory(scenario: ScenarioConfig | None = None, dt: float | None = None) -> Policy:
+        from agents.sb3 import SB3Policy
+
+        return SB3Policy(path)
+
+    return PolicyEntry(factory, None, None)
+
+
+def policy_entry(name: str) -> PolicyEntry:
+    """The entry for a registered name, an entry point, ``pkg.module:attr`` or ``sb3:path``.
+
+    Raises:
+        ValueError: unknown name or a spec that cannot be loaded (the message says why and lists names).
+    """
+    if name in _REGISTRY:
+        return _REGISTRY[name]
+    if name.startswith("sb3:"):
+        return _sb3_entry(name)
+    eps = _entry_points()
+    if name in eps:
+        return _plugin_entry(_import_attr(eps[name]))
+    if ":" in name:
+        return _plugin_entry(_import_attr(name))
+    raise ValueError(
+        f"unknown policy {name!r}; choose from {', '.join(policy_names())},"
+        " 'pkg.module:attr' or 'sb3:model.zip'"
+    )
 
 
 def scenario_settings(scenario: ScenarioConfig) -> dict[str, Any]:
@@ -59,17 +200,20 @@ def scenario_settings(scenario: ScenarioConfig) -> dict[str, Any]:
 def make_policy(
     name: str, scenario: ScenarioConfig | None = None, dt: float | None = None, **overrides: Any
 ) -> Policy:
-    """Build a registered policy by name.
+    """Build a policy by name or plug-in spec (see the module docstring).
 
     `scenario` fills the road-dependent settings, `dt` the step time of policies with timers (ignored by
-    the others), `overrides` any config field.
+    the others), `overrides` any config field (config-class policies only).
 
     Raises:
-        ValueError: unknown policy name or config field (the message lists the allowed ones).
+        ValueError: unknown policy or config field (the message lists the allowed ones).
     """
-    if name not in _REGISTRY:
-        raise ValueError(f"unknown policy {name!r}; choose from {', '.join(POLICIES)}")
-    cls, cfg_cls = _REGISTRY[name]
+    entry = policy_entry(name)
+    if entry.config is None:
+        if overrides:
+            raise ValueError(f"policy {name!r} has no config class; overrides {sorted(overrides)} refused")
+        return entry.factory(scenario=scenario, dt=dt)
+    cfg_cls = entry.config
     allowed = {f.name for f in fields(cfg_cls)}
     unknown = sorted(set(overrides) - allowed)
     if unknown:
@@ -81,11 +225,19 @@ def make_policy(
         cfg = replace(cfg, dt=float(dt))
     if overrides:
         cfg = replace(cfg, **overrides)
-    return cls(cfg)
+    return entry.factory(cfg)
 
 
 def policy_uses_predictors(name: str) -> bool:
-    """Whether the evaluation should put the predictor wrappers on for this policy."""
-    if name not in _REGISTRY:
-        raise ValueError(f"unknown policy {name!r}; choose from {', '.join(POLICIES)}")
-    return bool(getattr(_REGISTRY[name][0], "uses_predictors", False))
+    """Whether the evaluation should put the predictor wrappers on for this policy.
+
+    For an SB3 model this is whether its observation space has the predictors' keys (it loads the model).
+    """
+    entry = policy_entry(name)
+    if entry.uses_predictors is not None:
+        return entry.uses_predictors
+    if name.startswith("sb3:"):
+        from agents.sb3 import SB3Policy
+
+        return SB3Policy(name[len("sb3:") :]).uses_predictors
+    return bool(getattr(entry.factory, "uses_predictors", False))

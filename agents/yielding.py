@@ -64,11 +64,13 @@ class YieldingPolicy:
         self.config = config or YieldingConfig()
         self._stopped = np.zeros(0)
         self._declined = np.zeros(0, dtype=bool)
+        self._committed = np.zeros(0, dtype=bool)
 
     def reset(self) -> None:
-        """Forget the offer timers (call between episodes; they also reset by themselves, see below)."""
+        """Forget offer timers and stop commitments (call between episodes; they also reset by themselves)."""
         self._stopped = np.zeros(0)
         self._declined = np.zeros(0, dtype=bool)
+        self._committed = np.zeros(0, dtype=bool)
 
     def _offer_state(self, view: View, waiting_only: np.ndarray) -> np.ndarray:
         """Update the per-batch-element offer timers; return which elements treat the offer as declined.
@@ -88,6 +90,12 @@ class YieldingPolicy:
         self._stopped = np.where(standing, self._stopped + self.config.dt, 0.0)
         self._declined |= self._stopped >= self.config.offer_timeout - 1e-9
         return self._declined.copy()
+
+    def _commitments(self, needs_line: np.ndarray) -> np.ndarray:
+        """Which batch elements are already stopping for a legal duty that still holds."""
+        if self._committed.shape != needs_line.shape:
+            self._committed = np.zeros(needs_line.shape, dtype=bool)
+        return self._committed & needs_line
 
     def _targets(self, view: View) -> tuple[np.ndarray, np.ndarray]:
         """(legal_target, conflict_target): stop distances (B,) ahead of the ego front, inf when none."""
@@ -130,7 +138,12 @@ class YieldingPolicy:
         needs_line = legal_xing | (legal_wait & ~declined) | red
         with np.errstate(divide="ignore", invalid="ignore"):
             a_req = np.where(line_target > 0.05, v * v / (2.0 * np.maximum(line_target, 0.05)), np.inf)
-        can_stop = (a_req <= cfg.yield_max_deceleration) | (v < 0.5)
+        # A legal stop starts only when it is comfortable, but once started it is not given up while the
+        # car can still make it (harder, up to its braking limit): the duty opened when it could stop.
+        committed = self._commitments(needs_line)
+        limit = np.where(committed, cfg.ego.max_deceleration, cfg.yield_max_deceleration)
+        can_stop = (a_req <= limit) | (v < 0.5)
+        self._committed = needs_line & can_stop
         legal_target = np.where(needs_line & can_stop, line_target, np.inf)
 
         # 2. Conflict check (constant velocity ∪ predicted path).

@@ -15,7 +15,7 @@ import time
 
 import psutil
 
-from agents import POLICIES
+from crossing_eval.plugins import default_policies
 from crossing_eval.runners import run_tasks
 from crossing_eval.tasks import make_tasks
 from scenarios import list_scenarios
@@ -60,7 +60,7 @@ def main() -> None:
     args = parser.parse_args()
     if args.episodes < 1 or min(args.workers) < 1:
         parser.error("--episodes and --workers must be >= 1")
-    tasks = make_tasks(sorted(list_scenarios()), list(POLICIES), args.episodes, base_seed=2024)
+    tasks = make_tasks(sorted(list_scenarios()), default_policies()[0], args.episodes, base_seed=2024)
     reference = None
     for workers in args.workers:
         with TreeMemory() as memory:

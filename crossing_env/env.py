@@ -2,7 +2,11 @@
 
 The env is a thin template around `World`: `reset` builds the world from a scenario with the env's RNG;
 `step` applies the action → advances the world → observes → computes named reward terms →
-terminated (collision, end of road) / truncated (scenario duration).
+terminated (collision, end of road) / truncated (scenario duration), both Python bools.
+
+Change logs:
+    - Reward terms (`crossing_env.reward`) use the evaluation's yield, TTC and braking definitions; new
+      `time` and `near_miss` terms; `failing_to_yield` counts `crossing-eval`'s violated obligations.
 """
 
 from __future__ import annotations
@@ -18,7 +22,8 @@ import numpy as np
 from gymnasium import spaces
 
 from crossing_env.observation import ObservationBuilder
-from crossing_env.types import CrossingObs, GroundTruth, StepReturn
+from crossing_env.reward import RewardTerms
+from crossing_env.types import CrossingObs, StepReturn
 from crossing_env.world import World
 from scenarios import load_scenario, scenario_from_dict, validate_scenario
 from scenarios.config import EgoConfig, EnvConfig, ScenarioConfig
@@ -134,6 +139,7 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
         self._observer = ObservationBuilder(self.scenario, self.config.observation)
         self.observation_space = self._observer.space
         self.world: World | None = None
+        self._reward_terms: RewardTerms | None = None
         self._renderer = None
 
     # ------------------------------------------------------------------ Gymnasium API
@@ -150,6 +156,7 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
                 if self._observer.space != self.observation_space:
                     raise ValueError("options['scenario'] must keep the observation layout")
         self.world = World(self.scenario, self.np_random, self.config)
+        self._reward_terms = RewardTerms(self.scenario, self.config.dt, self.config.reward)
         self._observer.reset()
         gt = self.world.ground_truth()
         info = {"ground_truth": gt, "rewards": {}, "time": gt.time}
@@ -166,33 +173,16 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
         x_before = world.traffic.x[0]
         world.step(accel)
         gt = world.ground_truth()
-        rewards = self._rewards(gt, world.traffic.x[0] - x_before)
-        terminated = (
-            bool(gt.collisions) or world.traffic.x[0] >= self.scenario.road.length - END_OF_ROAD_MARGIN
+        assert self._reward_terms is not None  # set with the world in reset()
+        rewards = self._reward_terms(gt, float(world.traffic.x[0] - x_before))
+        terminated = bool(gt.collisions) or bool(
+            world.traffic.x[0] >= self.scenario.road.length - END_OF_ROAD_MARGIN
         )
-        truncated = (not terminated) and world.time >= self.scenario.duration - 1e-9
+        truncated = (not terminated) and bool(world.time >= self.scenario.duration - 1e-9)
         info = {"ground_truth": gt, "rewards": rewards, "time": gt.time}
         if self.render_mode == "human":
             self.render()
-        return self._observer.build(world), float(sum(rewards.values())), terminated, bool(truncated), info
-
-    def _rewards(self, gt: GroundTruth, progress: float) -> dict[str, float]:
-        """Named, weighted reward terms."""
-        w = self.config.reward
-        ca = gt.conflict_area
-        ego_front = gt.ego_position[0] + gt.ego_size[0] / 2
-        ego_rear = gt.ego_position[0] - gt.ego_size[0] / 2
-        in_crossing = ego_front > ca.x_min and ego_rear < ca.x_max
-        y = gt.pedestrian_positions[:, 1]
-        peds_in_half = gt.on_crossing & (y >= ca.half_y_min) & (y <= ca.half_y_max)
-        over_limit = float(gt.ego_velocity[0]) - self.scenario.road.speed_limit
-        return {
-            "progress": w.progress * float(progress),
-            "collision": w.collision if gt.collisions else 0.0,
-            "hard_braking": w.hard_braking if gt.ego_acceleration <= -w.hard_braking_threshold else 0.0,
-            "speeding": w.speeding * over_limit if over_limit > 0 else 0.0,
-            "failing_to_yield": w.failing_to_yield if in_crossing and bool(peds_in_half.any()) else 0.0,
-        }
+        return self._observer.build(world), float(sum(rewards.values())), terminated, truncated, info
 
     def render(self, observation: dict[str, np.ndarray] | None = None) -> np.ndarray | None:
         """Top-down frame: `rgb_array` returns it, `human` shows it in a window.

@@ -15,11 +15,17 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from agents import POLICIES
 from crossing_common.cli import DefaultsHelpFormatter, int_at_least, positive_float
 from crossing_common.folders import OutputFolderError, StagedFolder
 from crossing_eval.grid import parse_grid, run_grid_command
 from crossing_eval.outputs import write_outputs
+from crossing_eval.plugins import (
+    PREDICTOR_NAMES,
+    default_policies,
+    policies_help,
+    policy_spec,
+    predictor_spec,
+)
 from crossing_eval.report import format_table, summarise
 from crossing_eval.runners import (
     DEFAULT_RAY_TIMEOUT,
@@ -33,12 +39,12 @@ from crossing_eval.tasks import EpisodeRecord, make_tasks
 from scenarios import ScenarioError, list_scenarios, load_scenario
 
 DEFAULT_EPISODES = 5
-"""Episodes per (scenario, policy) in the default run: 8 scenarios x 5 seeds x 5 policies = 200 episodes."""
+"""Episodes per (scenario, policy) in the default run: 8 scenarios x 5 seeds x 6 policies = 240 episodes."""
 DEFAULT_SEED = 2024
 """Base seed of the default run."""
 DEFAULT_OUT = "crossing-eval-results"
 """Default output folder (relative to the working directory)."""
-PREDICTOR_CHOICES = ("s-cgru", "cvm", "none", "oracle")
+PREDICTOR_CHOICES = PREDICTOR_NAMES
 INTENTION_CHOICES = ("qlb", "classical", "none", "oracle")
 """'oracle' is privileged (reads the ground truth: an upper bound for the value-of-prediction table)."""
 GRID_POLICIES = ("yielding", "predictive_yielding")
@@ -77,7 +83,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--policies",
         type=_names,
         default=None,
-        help=f"comma-separated policy names (default: all): {', '.join(POLICIES)}",
+        help=policies_help(),
     )
     parser.add_argument(
         "--episodes",
@@ -118,9 +124,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--predictor",
-        choices=PREDICTOR_CHOICES,
+        type=_predictor,
         default="s-cgru",
-        help="trajectory predictor wrapper for policies that use predictions",
+        help="trajectory predictor wrapper for policies that use predictions: "
+        f"{', '.join(PREDICTOR_CHOICES)} or a checkpoint file",
     )
     parser.add_argument(
         "--intention",
@@ -157,13 +164,26 @@ def _resolve_scenarios(parser: argparse.ArgumentParser, names: list[str] | None)
     return sorted(dict.fromkeys(out))
 
 
+def _predictor(text: str) -> str:
+    try:
+        return predictor_spec(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def _resolve_policies(parser: argparse.ArgumentParser, names: list[str] | None) -> list[str]:
     if names is None:
-        return list(POLICIES)
+        policies, note = default_policies()
+        if note:
+            print(f"crossing-eval: {note}", file=sys.stderr)
+        return policies
+    out = []
     for name in names:
-        if name not in POLICIES:
-            parser.error(f"argument --policies: unknown policy {name!r}; choose from {', '.join(POLICIES)}")
-    return [p for p in POLICIES if p in names]
+        try:
+            out.append(policy_spec(name))
+        except ValueError as exc:
+            parser.error(f"argument --policies: {exc}")
+    return list(dict.fromkeys(out))
 
 
 def _parse(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> argparse.Namespace:

@@ -30,14 +30,14 @@ class EpisodeTask:
     scenario: str
     """Built-in scenario name or path to a scenario file."""
     policy: str
-    """Name from `agents.POLICIES`."""
+    """Policy name or plug-in spec accepted by `agents.make_policy` (resolved in the worker)."""
     episode: int
     """Episode index within (scenario, policy)."""
     seed: int
     """Seed given to `env.reset`."""
     predictor: str = "none"
-    """Trajectory predictor wrapper ('s-cgru', 'cvm', 'none' or the privileged 'oracle'); only for policies
-    that use predictors."""
+    """Trajectory predictor wrapper ('s-cgru', 'cvm', 'none', a checkpoint path, or the privileged 'oracle');
+    only for policies that use predictors."""
     intention: str = "none"
     """Intention wrapper ('qlb', 'classical', 'none' or the privileged 'oracle'); only for policies that use
     predictors."""
@@ -57,6 +57,8 @@ class EpisodeRecord:
     """Wrappers actually used (empty if none or unavailable)."""
     final_ground_truth: Any = None
     """Last `GroundTruth` of the episode (lets the replay verify itself)."""
+    episode_return: float = float("nan")
+    """Sum of the env's rewards over the episode (`info['rewards']` terms)."""
 
     @property
     def key(self) -> tuple[str, str, int]:
@@ -181,15 +183,22 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
     obs, info = env.reset(seed=task.seed)
     metrics = EpisodeMetrics(base.scenario, base.config.dt)
     actions: list[float] = []
+    episode_return = 0.0
     done = False
     gt = info["ground_truth"]
     while not done:
         action = np.asarray(policy(obs), dtype=np.float32).reshape(1)
         actions.append(float(action[0]))
-        obs, _, terminated, truncated, info = env.step(action)
+        obs, reward, terminated, truncated, info = env.step(action)
+        episode_return += float(reward)
         gt = info["ground_truth"]
         metrics.update(gt)
         done = terminated or truncated
     return EpisodeRecord(
-        task=task, result=metrics.result().as_dict(), actions=actions, predictors=used, final_ground_truth=gt
+        task=task,
+        result=metrics.result().as_dict(),
+        actions=actions,
+        predictors=used,
+        final_ground_truth=gt,
+        episode_return=episode_return,
     )

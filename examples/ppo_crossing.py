@@ -1,17 +1,26 @@
-"""Train Stable-Baselines3 PPO on `crossing_env/Crossing-v0` (dict observations) and evaluate it.
+"""Train Stable-Baselines3 PPO on `crossing_env/Crossing-v0` over all built-in scenarios, then evaluate it.
 
-    python examples/ppo_crossing.py --timesteps 200000 --scenario zebra_case1 --save ppo_crossing.zip
+    pip install -e ".[rl]"
+    python examples/ppo_crossing.py --timesteps 500000 --n-envs 4 --out runs/ppo --seed 0
 
-PPO uses SB3's ``MultiInputPolicy`` (a ``CombinedExtractor`` flattens each Box of the Dict observation).
-The observation holds positions up to ±500 m, so ``VecNormalize`` standardises it (rewards are left as they
-are). Envs run in a ``DummyVecEnv``: on a 2-core machine ``SubprocVecEnv`` costs more to start than it
-saves. After training, the greedy policy is scored with the same safety metrics as ``crossing-eval``
-(collision rate, yield compliance, mean delay) on held-out seeds.
+PPO uses SB3's ``MultiInputPolicy`` (its ``CombinedExtractor`` flattens each Box of the dict observation).
+Every reset draws one built-in scenario (`ScenarioMix`), so the policy meets them all. ``VecNormalize``
+standardises the observation (positions reach ±500 m) and the reward. Envs run in a ``DummyVecEnv`` by
+default (``--subproc`` for worker processes; on a 2-core machine they cost more than they save).
+
+Outputs in ``--out``: ``model.zip`` + ``model.vecnormalize.pkl`` (the pair ``crossing-eval --policies
+sb3:OUT/model.zip`` loads), ``step_N.zip`` + statistics (checkpoints every ``--eval-every`` steps, to
+select from), ``progress.csv`` (SB3's logger), ``episodes.csv`` (one row per training episode: return,
+collision, yield obligations and violations, delay) and ``learning_curve.png``. The final evaluation
+runs `crossing-eval`'s own episode code (`crossing_eval.tasks`) on its default seeds and prints the mean
+return with the metrics.
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,136 +28,373 @@ from typing import Any
 
 import numpy as np
 
-# Heavy imports (torch, gymnasium, the env) happen inside the functions, so bad arguments fail fast.
-ENV_ID = "crossing_env:crossing_env/Crossing-v0"
-"""Module-qualified id: worker processes of a SubprocVecEnv import the module and find the id."""
+# Heavy imports (torch, SB3, the env) happen inside the functions, so bad arguments fail fast.
 
 
 @dataclass(frozen=True)
 class Args:
     """Command-line settings (CleanRL style)."""
 
-    timesteps: int = 50_000
+    timesteps: int = 200_000
     """Total environment steps of training."""
-    scenario: str = "zebra_case1"
-    """Built-in scenario name or scenario file."""
-    n_envs: int = 1
-    """Parallel environments in the DummyVecEnv."""
-    n_steps: int = 1024
+    scenarios: tuple[str, ...] = ()
+    """Scenarios drawn per reset (empty: every built-in one)."""
+    n_envs: int = 4
+    """Parallel environments."""
+    subproc: bool = False
+    """Run the envs in worker processes (SubprocVecEnv, forkserver) instead of one process."""
+    n_steps: int = 512
     """Rollout length per env and update (SB3 `n_steps`)."""
-    batch_size: int = 64
+    batch_size: int = 256
     """Minibatch size (SB3 `batch_size`)."""
+    learning_rate: float = 3e-4
+    """Adam learning rate."""
+    gamma: float = 0.995
+    """Discount factor (0.995: a 20 s horizon at 0.1 s steps, the time a stop at the crossing takes)."""
+    predictors: bool = False
+    """Train with the QLB intention and S-CGRU trajectory wrappers on."""
+    bc_steps: int = 0
+    """Warm start: env steps of the rule-based yielding policy whose actions the actor imitates before
+    PPO (behaviour cloning; 0 = PPO from scratch)."""
+    log_std_init: float = 0.0
+    """Initial log standard deviation of the Gaussian actions (lower after a warm start)."""
     seed: int = 0
-    """Seed of PPO, the envs and the evaluation seeds."""
+    """Seed of PPO and the envs."""
+    eval_every: int = 50_000
+    """Steps between checkpoints (``step_N.zip`` + statistics) to select the shipped policy from (0: none)."""
     eval_episodes: int = 5
-    """Episodes of the trained policy scored with the safety metrics (0 = skip)."""
-    save: Path | None = None
-    """Where to save the trained model (``.zip``); nothing is saved by default."""
+    """Episodes per scenario in the final evaluation (0 = skip), on `crossing-eval`'s default seeds."""
+    out: Path = Path("runs/ppo")
+    """Output folder."""
+    progress: bool = True
+    """Show SB3's progress bar."""
 
 
 def parse_args(argv: list[str] | None = None) -> Args:
-    """Parse the command line into `Args` (positive integers enforced; argparse exits with 2 otherwise)."""
-
+    """Parse the command line into `Args` (argparse exits with 2 on bad values)."""
     from crossing_common.cli import int_at_least
 
     positive, non_negative = int_at_least(1), int_at_least(0)
     d = Args()
     p = argparse.ArgumentParser(description="PPO (Stable-Baselines3) on crossing_env/Crossing-v0")
     p.add_argument("--timesteps", type=positive, default=d.timesteps, help="training environment steps")
-    p.add_argument("--scenario", default=d.scenario, help="built-in scenario name or .toml file")
-    p.add_argument("--n-envs", type=positive, default=d.n_envs, help="parallel envs (DummyVecEnv)")
+    p.add_argument(
+        "--scenarios", default="", help="comma-separated scenarios drawn per reset (default: all built-in)"
+    )
+    p.add_argument("--n-envs", type=positive, default=d.n_envs, help="parallel envs")
+    p.add_argument("--subproc", action="store_true", help="envs in worker processes (SubprocVecEnv)")
     p.add_argument("--n-steps", type=positive, default=d.n_steps, help="rollout steps per env and update")
     p.add_argument("--batch-size", type=positive, default=d.batch_size, help="PPO minibatch size")
+    p.add_argument("--learning-rate", type=float, default=d.learning_rate, help="Adam learning rate")
+    p.add_argument("--gamma", type=float, default=d.gamma, help="discount factor")
+    p.add_argument("--predictors", action="store_true", help="train with the prediction wrappers on")
+    p.add_argument(
+        "--bc-steps", type=non_negative, default=d.bc_steps, help="warm start: imitate the yielding policy"
+    )
+    p.add_argument("--log-std-init", type=float, default=d.log_std_init, help="initial log std of actions")
     p.add_argument("--seed", type=int, default=d.seed, help="random seed")
-    p.add_argument("--eval-episodes", type=non_negative, default=d.eval_episodes, help="evaluation episodes")
-    p.add_argument("--save", type=Path, default=None, help="save the trained model to this .zip")
+    p.add_argument("--eval-every", type=non_negative, default=d.eval_every, help="steps between checkpoints")
+    p.add_argument(
+        "--eval-episodes", type=non_negative, default=d.eval_episodes, help="final evaluation episodes each"
+    )
+    p.add_argument("--out", type=Path, default=d.out, help="output folder")
+    p.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     a = p.parse_args(argv)
-    return Args(a.timesteps, a.scenario, a.n_envs, a.n_steps, a.batch_size, a.seed, a.eval_episodes, a.save)
+    from scenarios import list_scenarios
+
+    builtin = sorted(list_scenarios())
+    names = tuple(s.strip() for s in a.scenarios.split(",") if s.strip()) or tuple(builtin)
+    for n in names:
+        if n not in builtin and not (n.endswith(".toml") and Path(n).is_file()):
+            p.error(f"argument --scenarios: unknown scenario {n!r}; built-in: {', '.join(builtin)}")
+    if not 0.0 < a.gamma <= 1.0 or not a.learning_rate > 0:
+        p.error(f"--gamma must be in (0, 1] and --learning-rate > 0, got {a.gamma!r}, {a.learning_rate!r}")
+    return Args(
+        a.timesteps, names, a.n_envs, a.subproc, a.n_steps, a.batch_size, a.learning_rate, a.gamma,
+        a.predictors, a.bc_steps, a.log_std_init, a.seed, a.eval_every, a.eval_episodes, a.out,
+        not a.no_progress,
+    )  # fmt: skip
 
 
-def make_env(scenario: str) -> Any:
-    """One monitored env (SB3 needs `Monitor` for episode statistics)."""
-    import gymnasium as gym
-    from stable_baselines3.common.monitor import Monitor
-
-    import crossing_env  # noqa: F401 - registers the env id
-
-    return Monitor(gym.make(ENV_ID, scenario=scenario))
-
-
-def evaluate(model, vec_normalize, scenario: str, episodes: int, seed: int) -> dict:
-    """Greedy rollouts scored with `crossing_env.safety` (the same figures as `crossing-eval`)."""
+def make_env(scenarios: tuple[str, ...], predictors: bool) -> Any:
+    """One training env: a scenario drawn per reset, episode metrics in `info`, optional predictors."""
     import gymnasium as gym
 
     import crossing_env
     from crossing_env.safety import EpisodeMetrics
-    from crossing_eval.statistics import aggregate
 
-    env = gym.make(crossing_env.ENV_ID, scenario=scenario)
-    base = env.unwrapped
-    results = []
-    for ep in range(episodes):
-        obs, _ = env.reset(seed=10_000 + seed + ep)
-        metrics = EpisodeMetrics(base.scenario, base.config.dt)
+    class ScenarioMix(gym.Wrapper):
+        """Draws the scenario of each episode from `names` (seeded by the reset seed, then by episode)."""
+
+        def __init__(self, env: gym.Env, names: tuple[str, ...]) -> None:
+            super().__init__(env)
+            self.names = names
+            self._rng = np.random.default_rng(0)
+
+        def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[Any, dict]:
+            if seed is not None:
+                self._rng = np.random.default_rng(seed)
+            name = self.names[int(self._rng.integers(len(self.names)))]
+            obs, info = self.env.reset(seed=seed, options={**(options or {}), "scenario": name})
+            base = self.env.unwrapped
+            self._metrics = EpisodeMetrics(base.scenario, base.config.dt)
+            return obs, info
+
+        def step(self, action: np.ndarray) -> tuple[Any, float, bool, bool, dict]:
+            obs, reward, terminated, truncated, info = self.env.step(action)
+            self._metrics.update(info["ground_truth"])
+            if terminated or truncated:
+                r = self._metrics.result()
+                info = {
+                    **info,
+                    "episode_metrics": {
+                        "scenario": r.scenario,
+                        "collision": float(r.collision),
+                        "yield_obligations": r.yield_obligations,
+                        "yield_violations": r.yield_violations,
+                        "delay": r.delay if r.passed_crossing else float("nan"),
+                        "duration": r.duration,
+                    },
+                }
+            return obs, reward, terminated, truncated, info
+
+    env = gym.make(crossing_env.ENV_ID, scenario=scenarios[0])
+    env = ScenarioMix(env, scenarios)
+    if predictors:
+        from predictors.intention import QLBIntention
+        from predictors.trajectory_wrapper import TrajectoryPrediction
+
+        env = TrajectoryPrediction(QLBIntention(env))
+    from stable_baselines3.common.monitor import Monitor
+
+    return Monitor(env)
+
+
+class EpisodeLog:
+    """SB3 callback: one CSV row per finished training episode (return and the safety metrics)."""
+
+    FIELDS = ("step", "scenario", "return", "collision", "obligations", "violations", "delay", "duration")
+
+    def __init__(self, path: Path) -> None:
+        from stable_baselines3.common.callbacks import BaseCallback
+
+        log = self
+
+        class _Callback(BaseCallback):
+            def _on_step(self) -> bool:
+                for info in self.locals["infos"]:
+                    if "episode" in info and "episode_metrics" in info:
+                        m = info["episode_metrics"]
+                        log.writer.writerow(
+                            [self.num_timesteps, m["scenario"], info["episode"]["r"], m["collision"],
+                             m["yield_obligations"], m["yield_violations"], m["delay"], m["duration"]]
+                        )  # fmt: skip
+                return True
+
+        self.file = path.open("w", newline="", buffering=1)  # line-buffered: readable while training
+        self.writer = csv.writer(self.file)
+        self.writer.writerow(self.FIELDS)
+        self.callback = _Callback()
+
+    def close(self) -> None:
+        """Flush and close the CSV."""
+        self.file.close()
+
+
+def behaviour_cloning(model: Any, venv: Any, args: Args, epochs: int = 10) -> float:
+    """Fit the actor's mean action to the yielding policy's on `args.bc_steps` demonstration steps.
+
+    The demonstrations also seed VecNormalize's observation statistics. Returns the final MSE.
+    """
+    import torch
+
+    from agents import make_policy
+
+    env = make_env(args.scenarios, args.predictors)
+    obs_keys = list(venv.observation_space.spaces)
+    buf: dict[str, list[np.ndarray]] = {k: [] for k in obs_keys}
+    actions: list[float] = []
+    episode = 0
+    while len(actions) < args.bc_steps:
+        obs, _ = env.reset(seed=args.seed * 100_003 + episode)
+        base = env.unwrapped
+        teacher = make_policy("yielding", scenario=base.scenario, dt=base.config.dt)
         done = False
-        while not done:
-            batch = {k: v[None] for k, v in obs.items()}
-            if vec_normalize is not None:
-                batch = vec_normalize.normalize_obs(batch)
-            action, _ = model.predict(batch, deterministic=True)
-            obs, _, terminated, truncated, info = env.step(np.asarray(action).reshape(1))
-            metrics.update(info["ground_truth"])
+        while not done and len(actions) < args.bc_steps:
+            a = np.asarray(teacher(obs), dtype=np.float32).reshape(1)
+            for k in obs_keys:
+                buf[k].append(obs[k])
+            actions.append(float(a[0]))
+            obs, _, terminated, truncated, _ = env.step(a)
             done = terminated or truncated
-        results.append(metrics.result())
+        episode += 1
     env.close()
-    return aggregate(results)
+    data = {k: np.stack(v) for k, v in buf.items()}
+    for k in obs_keys:
+        venv.obs_rms[k].update(data[k])
+    norm = venv.normalize_obs(data)
+    target = torch.as_tensor(np.asarray(actions, dtype=np.float32))[:, None]
+    policy = model.policy
+    opt = torch.optim.Adam(policy.parameters(), lr=1e-3)
+    rng = np.random.default_rng(args.seed)
+    n = len(actions)
+    loss_value = float("nan")
+    for _ in range(epochs):
+        for idx in np.array_split(rng.permutation(n), max(1, n // 256)):
+            batch = {k: torch.as_tensor(norm[k][idx]) for k in obs_keys}
+            mean = policy.get_distribution(batch).distribution.mean
+            loss = torch.nn.functional.mse_loss(mean, target[idx])
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+            loss_value = loss.item()
+    return loss_value
+
+
+def plot_learning_curve(episodes_csv: Path, png: Path, window: int = 200) -> None:
+    """Return, collision rate, yield compliance and delay against training steps (moving windows)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    with episodes_csv.open() as fh:
+        rows = list(csv.DictReader(fh))
+    if not rows:  # too short a run to finish an episode: an empty figure that says so
+        fig, ax = plt.subplots(figsize=(6, 2))
+        ax.text(0.5, 0.5, "no finished training episode yet", ha="center", va="center")
+        ax.set_axis_off()
+        fig.savefig(png, dpi=90)
+        plt.close(fig)
+        return
+    step = np.array([float(r["step"]) for r in rows])
+    ret = np.array([float(r["return"]) for r in rows])
+    col = np.array([float(r["collision"]) for r in rows])
+    obl = np.array([float(r["obligations"]) for r in rows])
+    vio = np.array([float(r["violations"]) for r in rows])
+    dur = np.array([float(r["duration"]) for r in rows])
+    delay = np.array([float(r["delay"]) for r in rows])
+    delay = np.where(np.isnan(delay), dur, delay)  # episodes that never passed count at their duration
+    w = max(1, min(window, len(rows) // 5 or 1))
+    kernel = np.ones(w)
+
+    def smooth(x: np.ndarray) -> np.ndarray:
+        return np.convolve(x, kernel, mode="valid") / w
+
+    s = step[w - 1 :]
+    n_obl = np.maximum(np.convolve(obl, kernel, mode="valid"), 1)
+    compliance = 1.0 - np.convolve(vio, kernel, mode="valid") / n_obl
+    fig, ax = plt.subplots(1, 4, figsize=(16, 3.5))
+    for a, y, title in zip(
+        ax,
+        (smooth(ret), smooth(col), compliance, smooth(delay)),
+        (f"return ({w}-episode mean)", "collision rate", "yield compliance", "delay s (unpassed: duration)"),
+        strict=True,
+    ):
+        a.plot(s, y)
+        a.set_title(title)
+        a.set_xlabel("training steps")
+        a.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(png, dpi=90)
+    plt.close(fig)
+
+
+def evaluate(model_path: Path, scenarios: tuple[str, ...], episodes: int, workers: int = 1) -> dict[str, Any]:
+    """`crossing-eval`'s episodes (same seeds, same code) for the saved model; metrics plus mean return."""
+    from crossing_eval.plugins import policy_spec
+    from crossing_eval.report import summarise
+    from crossing_eval.runners import run_tasks
+    from crossing_eval.tasks import make_tasks
+
+    name = f"sb3:{model_path}"
+    policy_spec(name)  # fails early with a clear message
+    tasks = make_tasks(list(scenarios), [name], episodes, 2024)
+    records = run_tasks(tasks, workers, "local", None, show_progress=False)
+    summary = summarise(records)
+    returns = [r.episode_return for r in records]
+    return {"summary": summary, "records": records, "mean_return": float(np.nanmean(returns))}
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Train, optionally save, evaluate; prints the figures."""
+    """Train, save, plot, evaluate; prints the figures."""
     args = parse_args(argv)
     import torch
 
     torch.set_num_threads(1)
     from stable_baselines3 import PPO
-    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+    from stable_baselines3.common.logger import configure
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
-    from scenarios import load_scenario
-
-    load_scenario(args.scenario)  # fail early with the scenario loader's clear message
-    venv = DummyVecEnv([lambda: make_env(args.scenario) for _ in range(args.n_envs)])
+    args.out.mkdir(parents=True, exist_ok=True)
+    fns = [lambda: make_env(args.scenarios, args.predictors) for _ in range(args.n_envs)]
+    venv = SubprocVecEnv(fns, start_method="forkserver") if args.subproc else DummyVecEnv(fns)
     venv.seed(args.seed)
-    venv = VecNormalize(venv, norm_obs=True, norm_reward=False)
+    venv = VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=args.gamma)
     model = PPO(
         "MultiInputPolicy",
         venv,
         n_steps=args.n_steps,
         batch_size=min(args.batch_size, args.n_steps * args.n_envs),
+        learning_rate=args.learning_rate,
+        gamma=args.gamma,
         seed=args.seed,
         device="cpu",
         verbose=0,
+        policy_kwargs={"log_std_init": args.log_std_init},
     )
+    if args.bc_steps:
+        t_bc = time.perf_counter()
+        mse = behaviour_cloning(model, venv, args)
+        print(f"warm start: imitated the yielding policy on {args.bc_steps} steps (MSE {mse:.4f})"
+              f" in {time.perf_counter() - t_bc:.1f} s")  # fmt: skip
+    model.set_logger(configure(str(args.out), ["csv"]))
+    log = EpisodeLog(args.out / "episodes.csv")
+    from stable_baselines3.common.callbacks import CallbackList, EveryNTimesteps
+
+    callbacks: list[Any] = [log.callback]
+    if args.eval_every:
+        callbacks.append(EveryNTimesteps(args.eval_every, _Checkpoint(model, venv, args.out)))
     t0 = time.perf_counter()
-    model.learn(total_timesteps=args.timesteps)
+    model.save(args.out / "step_0.zip")
+    venv.save(str(args.out / "step_0.vecnormalize.pkl"))
+    try:
+        model.learn(args.timesteps, callback=CallbackList(callbacks), progress_bar=args.progress)
+    except KeyboardInterrupt:  # Ctrl-C stops training early; what was learnt is still saved and evaluated
+        print(f"interrupted at {model.num_timesteps} steps", file=sys.stderr)
     train_s = time.perf_counter() - t0
-    print(f"trained PPO for {model.num_timesteps} steps in {train_s:.1f} s on {args.scenario}")
-    if args.save is not None:
-        model.save(args.save)
-        venv.save(str(args.save.with_suffix(".vecnormalize.pkl")))
-        print(f"saved {args.save} and its VecNormalize statistics")
-    if args.eval_episodes:
-        venv.training = False
-        agg = evaluate(model, venv, args.scenario, args.eval_episodes, args.seed)
-        lo, hi = agg["collision_ci95"]
-        print(
-            f"eval {agg['episodes']} episodes: collision rate {agg['collision_rate']:.2f}"
-            f" [{lo:.2f}, {hi:.2f}],"
-            f" yield compliance {agg['yield_compliance']:.2f} ({agg['yield_obligations']} obligations),"
-            f" mean delay {agg['mean_delay']:.2f} s, pass rate {agg['pass_rate']:.2f}"
-        )
+    log.close()
+    print(
+        f"trained PPO for {model.num_timesteps} steps in {train_s:.1f} s"
+        f" ({model.num_timesteps / train_s:.0f} steps/s), seed {args.seed}, {len(args.scenarios)} scenario(s)"
+    )
+    model.save(args.out / "model.zip")
+    venv.save(str(args.out / "model.vecnormalize.pkl"))
+    plot_learning_curve(args.out / "episodes.csv", args.out / "learning_curve.png")
+    print(f"saved {args.out}/model.zip (+ model.vecnormalize.pkl), episodes.csv, learning_curve.png")
     venv.close()
+    if args.eval_episodes:
+        from crossing_eval.report import format_table
+
+        ev = evaluate(args.out / "model.zip", args.scenarios, args.eval_episodes)
+        print(format_table(ev["summary"], [f"sb3:{args.out / 'model.zip'}"]))
+        print(f"mean return {ev['mean_return']:.2f} over {len(ev['records'])} episodes")
     return 0
 
 
+def _Checkpoint(model: Any, venv: Any, out: Path) -> Any:
+    """Callback: saves ``step_N.zip`` + its normalisation statistics at every call."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class _Save(BaseCallback):
+        def _on_step(self) -> bool:
+            path = out / f"step_{self.num_timesteps}.zip"
+            model.save(path)
+            venv.save(str(path.with_suffix(".vecnormalize.pkl")))
+            return True
+
+    return _Save()
+
+
 if __name__ == "__main__":
-    raise SystemExit(main())
+    sys.exit(main())

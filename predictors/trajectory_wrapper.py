@@ -30,6 +30,7 @@ seeded reset), never from a global RNG.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import Any
 
@@ -43,6 +44,21 @@ from predictors.data import OBS_LEN, PRED_LEN
 from predictors.fast_inference import FastPredictor
 from predictors.models import MODEL_KINDS, SocialRecurrent
 from predictors.train import WEIGHTS_DIR, load_model
+
+
+def _one_thread_after_fork() -> None:
+    """In a forked child, run torch on one thread: its parent's thread pool does not survive `fork`.
+
+    Without this, ``gym.make_vec(..., vectorization_mode="async", wrappers=[TrajectoryPrediction])``
+    with the default ``fork`` start hangs silently in the children's first torch operation (the parent
+    built a dummy env, which started torch's OpenMP pool). One thread per env worker is what a vector
+    env wants anyway; spawn/forkserver children are not affected.
+    """
+    torch.set_num_threads(1)
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_one_thread_after_fork)
 
 MAX_STEP = 3.0
 """Largest displacement per 0.4 s step assumed when bounding predictions, metres (clipped beyond)."""

@@ -339,20 +339,27 @@ class ScenarioConfig:
 
 @dataclass(frozen=True)
 class RewardConfig:
-    """Weights of the named reward terms reported in `info['rewards']`."""
+    """Weights of the named reward terms reported in `info['rewards']` (their sum is the step's reward).
+
+    The terms use the ground-truth definitions of `crossing_env.safety` (the same code as `crossing-eval`'s
+    metrics): yield obligations, TTC and hard braking are not re-implemented for the reward.
+    """
 
     progress: float = 0.05
-    """Reward per metre travelled."""
+    """Reward per metre travelled along the road."""
+    time: float = -0.2
+    """Reward per second of simulated time (a cost of time: waiting longer than needed loses return)."""
     collision: float = -100.0
     """Reward on any ego collision (terminates the episode)."""
-    hard_braking: float = -0.5
-    """Reward per step with deceleration beyond `hard_braking_threshold`."""
-    hard_braking_threshold: float = 3.0
-    """Deceleration in m/s² counted as hard braking."""
+    failing_to_yield: float = -10.0
+    """Reward per yield obligation violated in the step (`crossing-eval`'s yield-compliance rule: the ego
+    enters the conflict area while a pedestrian on the crossing or waiting at the kerb has right of way)."""
+    near_miss: float = -1.0
+    """Reward per second in which the ego–pedestrian TTC is below `MetricsConfig.serious_ttc` (1.5 s)."""
+    hard_braking: float = -0.02
+    """Reward per step with deceleration beyond `MetricsConfig.hard_braking_threshold` (3 m/s²)."""
     speeding: float = -0.1
     """Reward per step per m/s above the speed limit (progress alone would reward driving ever faster)."""
-    failing_to_yield: float = -2.0
-    """Reward per step in which the ego occupies the crossing while a pedestrian is on it in its half."""
 
 
 @dataclass(frozen=True)

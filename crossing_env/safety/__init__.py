@@ -16,18 +16,30 @@ from crossing_env.safety.geometry import (
     time_to_collision,
 )
 from crossing_env.safety.results import EpisodeResult, MetricsConfig, json_safe
+from crossing_env.safety.yielding import (
+    YieldTracker,
+    ego_in_conflict_area,
+    is_hard_braking,
+    min_pedestrian_ttc,
+    obligation_candidates,
+)
 
 __all__ = [
     "EpisodeMetrics",
     "EpisodeResult",
     "MetricsConfig",
+    "YieldTracker",
     "box_box_separation",
     "box_circle_separation",
     "box_circle_ttc",
     "crossing_drac",
+    "ego_in_conflict_area",
     "following_drac",
     "following_ttc",
+    "is_hard_braking",
     "json_safe",
+    "min_pedestrian_ttc",
+    "obligation_candidates",
     "rect_occupancy_interval",
     "time_to_collision",
 ]

@@ -17,13 +17,15 @@ from typing import ClassVar
 
 import numpy as np
 
-from crossing_env.safety.geometry import (
-    _box_disc_ttc,
-    _crossing_drac_scalar,
-    _slabs,
-)
+from crossing_env.safety.geometry import _crossing_drac_scalar, _slabs
 from crossing_env.safety.results import EpisodeResult, MetricsConfig
 from crossing_env.safety.stops import UnneededStops
+from crossing_env.safety.yielding import (
+    YieldTracker,
+    ego_in_conflict_area,
+    is_hard_braking,
+    min_pedestrian_ttc,
+)
 from crossing_env.types import ConflictArea, FloatArray, GroundTruth, PedState
 from scenarios.config import ScenarioConfig
 
@@ -36,7 +38,6 @@ _INF = math.inf
 # Per-pedestrian state table (ids → rows), vectorised
 # ---------------------------------------------------------------------------------------------------------
 
-_OPEN, _COMPLIANT, _VIOLATED, _WAIVED, _DECLINED = 1, 2, 3, 4, 5
 _NO_STATE = -1
 _APPROACHING, _WAITING, _CROSSING = int(PedState.APPROACHING), int(PedState.WAITING), int(PedState.CROSSING)
 
@@ -48,20 +49,16 @@ class _PedTable:
         "last_entry",
         "last_exit",
         "wait_start",
-        "offer_time",
     )
     _FILL: ClassVar[dict[str, float]] = {
         "last_entry": -_INF,
         "last_exit": -_INF,
         "wait_start": math.nan,
-        "offer_time": 0.0,
     }
 
     def __init__(self) -> None:
         self.ids = np.empty(0, dtype=np.int64)
         self.in_ca = np.empty(0, dtype=bool)
-        self.entered_half = np.empty(0, dtype=bool)
-        self.status = np.empty(0, dtype=np.int8)
         self.prev_state = np.empty(0, dtype=np.int64)
         for name in self._FLOAT_COLS:
             setattr(self, name, np.empty(0, dtype=np.float64))
@@ -82,8 +79,6 @@ class _PedTable:
         k = new.shape[0]
         self.ids = all_ids[order]
         self.in_ca = np.concatenate([self.in_ca, np.zeros(k, dtype=bool)])[order]
-        self.entered_half = np.concatenate([self.entered_half, np.zeros(k, dtype=bool)])[order]
-        self.status = np.concatenate([self.status, np.zeros(k, dtype=np.int8)])[order]
         self.prev_state = np.concatenate([self.prev_state, np.full(k, _NO_STATE, dtype=np.int64)])[order]
         for name in self._FLOAT_COLS:
             col = np.concatenate([getattr(self, name), np.full(k, self._FILL[name])])[order]
@@ -197,6 +192,7 @@ class EpisodeMetrics:
         self._clear_time = math.nan
         self._waits: list[float] = []
         self._peds = _PedTable()
+        self._yield = YieldTracker(self.scenario.crossing.kind, self.dt, self.config)
         self._ca: ConflictArea | None = None
         self._ca_arrays: tuple[np.ndarray, np.ndarray] = (np.zeros(2), np.zeros(2))
         self._size: tuple[float, float] = (math.nan, math.nan)
@@ -214,7 +210,7 @@ class EpisodeMetrics:
         ca = gt.conflict_area
         ego_p = gt.ego_position
         ego_v = gt.ego_velocity
-        ex, ey = float(ego_p[0]), float(ego_p[1])
+        ex = float(ego_p[0])
         evx = float(ego_v[0])
         speed = math.hypot(evx, float(ego_v[1]))
         length, width = gt.ego_size
@@ -227,7 +223,7 @@ class EpisodeMetrics:
 
         # Braking and comfort.
         acc = float(gt.ego_acceleration)
-        hard = acc <= -cfg.hard_braking_threshold
+        hard = is_hard_braking(gt, cfg)
         self._hard_steps += hard
         self._hard_events += hard and not self._was_hard
         self._was_hard = hard
@@ -247,12 +243,7 @@ class EpisodeMetrics:
         self._last_t, self._last_x, self._last_front, self._last_rear = t, ex, front, rear
 
         # Ego occupancy of the conflict area.
-        ego_in = (
-            front > ca.x_min
-            and rear < ca.x_max
-            and ey + 0.5 * width > ca.y_min
-            and ey - 0.5 * width < ca.y_max
-        )
+        ego_in = ego_in_conflict_area(gt)
         ego_entered = ego_in and not self._ego_in_ca
         if not ego_in and self._ego_in_ca:
             self._ego_last_exit = t
@@ -352,7 +343,7 @@ class EpisodeMetrics:
                 self._clearance_time += dt
             # TTC: exact box–disc, only while the ego moves.
             if speed > cfg.ttc_min_ego_speed:
-                min_ttc = float(_box_disc_ttc(q, pv - gt.ego_velocity, half, rad).min())
+                min_ttc = min_pedestrian_ttc(gt, cfg, half)
                 self.step_ttc = min_ttc
                 if min_ttc < self._min_ttc:
                     self._min_ttc = min_ttc
@@ -388,7 +379,7 @@ class EpisodeMetrics:
         if np.count_nonzero(changed):
             self._update_waits(t, rows, states, prev, changed)
 
-        self._update_yielding(gt, rows, front, speed)
+        self._yield.update(gt, ego_in)
 
     def _update_pet(
         self,
@@ -436,72 +427,12 @@ class EpisodeMetrics:
         tab.wait_start[rows[changed & (prev == _WAITING)]] = math.nan
         tab.prev_state[rows] = states
 
-    def _update_yielding(self, gt: GroundTruth, rows: np.ndarray, front: float, speed: float) -> None:
-        """Open, resolve and check yield obligations (see the class docstring)."""
-        kind = self.scenario.crossing.kind
-        if kind == "none":
-            return
-        # At a signal, obligations open only on pedestrian green; ones opened earlier are still checked.
-        may_open = kind != "signalised" or bool(gt.signal_pedestrian_green)
-        cfg = self.config
-        ca = gt.conflict_area
-        tab = self._peds
-        status = tab.status[rows]
-        open_ = status == _OPEN
-        dist = ca.stop_line_x - front
-        can_open = may_open and dist > speed * speed / (2.0 * cfg.yield_deceleration)
-        candidates = can_open and np.count_nonzero((gt.on_crossing | gt.waiting) & (status == 0))
-        if not candidates and not np.count_nonzero(open_):
-            return  # nothing open and nobody who could open an obligation now
-
-        px = gt.pedestrian_positions[:, 0]
-        py = gt.pedestrian_positions[:, 1]
-        in_half = gt.on_road & (py >= ca.half_y_min) & (py <= ca.half_y_max)
-        near = np.abs(px - 0.5 * (ca.x_min + ca.x_max)) <= 0.5 * (ca.x_max - ca.x_min) + cfg.kerb_margin
-        waiting = gt.waiting & near
-
-        # Resolve open obligations from the pedestrians' side.
-        entered_half = tab.entered_half[rows] | (open_ & in_half)
-        cleared = open_ & entered_half & ~in_half
-        states = gt.pedestrian_states
-        gave_up = (states != _WAITING) & (states != _CROSSING) & ~gt.on_road  # walked off, never stepped on
-        dropped = open_ & ~entered_half & gave_up
-        status = np.where(cleared, _COMPLIANT, np.where(dropped, _WAIVED, status))
-
-        # Declined offers: the ego stands just before the stop line while the pedestrian keeps waiting.
-        if speed <= cfg.offer_stop_speed and 0.0 <= dist <= cfg.offer_distance:
-            offering = (status == _OPEN) & waiting
-            if np.count_nonzero(offering):
-                r_off = rows[offering]
-                tab.offer_time[r_off] += self.dt
-                status[offering] = np.where(
-                    tab.offer_time[r_off] >= cfg.offer_timeout - 1e-9, _DECLINED, _OPEN
-                )
-
-        # Open new obligations while the ego can still stop comfortably before the stop line.
-        if can_open:
-            relevant = gt.on_crossing & in_half
-            if cfg.far_half_counts:
-                toward = (0.5 * (ca.half_y_min + ca.half_y_max) - py) * gt.pedestrian_velocities[:, 1] > 0.0
-                relevant |= gt.on_crossing & ~in_half & toward
-            new = (status == 0) & (relevant | waiting) & gt.intends_to_cross  # the law's duty: to crossers
-            status[new] = _OPEN
-            entered_half |= new & in_half
-
-        # Violations: the ego occupies the conflict area while an obligation is open.
-        if self._ego_in_ca:
-            status[status == _OPEN] = _VIOLATED
-        tab.status[rows] = status
-        tab.entered_half[rows] = entered_half
-
     # -- end of episode -------------------------------------------------------------------------------
 
     def result(self) -> EpisodeResult:
         """Summarise the episode so far (can be called at any time; does not reset)."""
         road = self.scenario.road
-        status = self._peds.status
-        compliant = int(np.count_nonzero((status == _OPEN) | (status == _COMPLIANT) | (status == _DECLINED)))
-        violations = int(np.count_nonzero(status == _VIOLATED))
+        compliant, violations, declined = self._yield.counts()
         passed = not math.isnan(self._reach_time)
         delay = math.nan
         if passed:
@@ -549,7 +480,7 @@ class EpisodeMetrics:
             yield_obligations=compliant + violations,
             yield_compliant=compliant,
             yield_violations=violations,
-            yield_offers_declined=int(np.count_nonzero(status == _DECLINED)),
+            yield_offers_declined=declined,
             passed_crossing=passed,
             delay=delay,
             time_to_pass=ttp,

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from agents import (
+    BUILTIN_POLICIES,
     POLICIES,
     AlwaysCautious,
     ConstantSpeed,
@@ -236,7 +237,7 @@ def test_always_cautious_crawls_at_every_crossing() -> None:
 # ------------------------------------------------------------------------------------ batching / registry
 
 
-@pytest.mark.parametrize("name", POLICIES)
+@pytest.mark.parametrize("name", BUILTIN_POLICIES)
 def test_policies_work_batched(name: str) -> None:
     obs_list = [
         make_obs(10.0, 18.0, [{"dx": crossing_centre(18.0), "dy": 0.0, "vy": 1.3, "oc": 1, "road": 1}]),
@@ -256,7 +257,7 @@ def test_policies_work_batched(name: str) -> None:
 
 
 def test_registry() -> None:
-    assert set(POLICIES) == {
+    builtin = {
         "yielding",
         "predictive_yielding",
         "constant_speed",
@@ -264,6 +265,8 @@ def test_registry() -> None:
         "always_cautious",
         "highway_rule",
     }
+    assert set(BUILTIN_POLICIES) == builtin
+    assert POLICIES == (*BUILTIN_POLICIES, "ppo")
     with pytest.raises(ValueError, match="unknown policy 'nope'"):
         make_policy("nope")
     with pytest.raises(ValueError, match="bogus"):

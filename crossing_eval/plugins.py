@@ -1,0 +1,78 @@
+"""Which policies and predictors `crossing-eval` accepts: names, plug-ins, SB3 models, checkpoints.
+
+The task list carries plain strings (policy specs, predictor names or absolute checkpoint paths), so
+worker processes and Ray tasks resolve them with `agents.make_policy` / the trajectory wrapper
+themselves; nothing unpicklable crosses a process boundary.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+from agents.registry import BUILTIN_POLICIES, POLICIES, SHIPPED_PPO, policy_entry, policy_names
+
+PREDICTOR_NAMES = ("s-cgru", "cvm", "none", "oracle")
+"""Built-in `--predictor` names ("oracle" is privileged); it also takes a checkpoint path."""
+
+
+def sb3_available() -> bool:
+    """Whether Stable-Baselines3 (the ``rl`` extra) is installed."""
+    return importlib.util.find_spec("stable_baselines3") is not None
+
+
+def default_policies() -> tuple[list[str], str | None]:
+    """The default table's policies, and a note when the shipped PPO row has to be left out."""
+    if not SHIPPED_PPO.is_file():
+        return list(BUILTIN_POLICIES), f"policy 'ppo' left out: {SHIPPED_PPO} is missing"
+    if not sb3_available():
+        return list(
+            BUILTIN_POLICIES
+        ), "policy 'ppo' left out: it needs the 'rl' extra (pip install -e '.[rl]')"
+    return list(POLICIES), None
+
+
+def policy_spec(text: str) -> str:
+    """A checked policy spec (``sb3:`` paths made absolute, so every worker finds the file).
+
+    Raises:
+        ValueError: unknown name, module or attribute, missing file, or SB3 not installed.
+    """
+    if text.startswith("sb3:"):
+        path = Path(text[len("sb3:") :]).expanduser()
+        if not path.is_file():
+            raise ValueError(f"policy {text!r}: no such file {str(path)!r}")
+        if not sb3_available():
+            raise ValueError(f"policy {text!r} needs Stable-Baselines3: pip install -e '.[rl]'")
+        text = f"sb3:{path.resolve()}"
+    elif text == "ppo" and not sb3_available():
+        raise ValueError("policy 'ppo' needs Stable-Baselines3: pip install -e '.[rl]'")
+    policy_entry(text)
+    return text
+
+
+def predictor_spec(text: str) -> str:
+    """A built-in predictor name, or an existing checkpoint file as an absolute path.
+
+    Raises:
+        ValueError: neither a name nor an existing file.
+    """
+    if text in PREDICTOR_NAMES:
+        return text
+    path = Path(text).expanduser()
+    if not path.is_file():
+        raise ValueError(
+            f"unknown predictor {text!r}: not one of {', '.join(PREDICTOR_NAMES)} nor an existing checkpoint"
+        )
+    return str(path.resolve())
+
+
+def policies_help() -> str:
+    """The `--policies` help text: every name accepted now, and the plug-in forms."""
+    return (
+        f"comma-separated policies (default: {', '.join(POLICIES)}; 'ppo' needs the 'rl' extra)."
+        f" Names: {', '.join(policy_names())};"
+        " also 'pkg.module:attr' (a policy class with config_class, or a factory(scenario=, dt=)),"
+        " installed entry points of the group 'crossing_env.policies', and 'sb3:path/model.zip'"
+        " (Stable-Baselines3, with model.vecnormalize.pkl beside it)"
+    )

@@ -1,0 +1,42 @@
+"""The shipped PPO policy: loads with its normalisation, acts in range, and is a default crossing-eval row."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import crossing_eval.plugins as plugins
+from agents import POLICIES, make_policy, policy_uses_predictors
+from agents.registry import SHIPPED_PPO
+from agents.sb3 import stats_path
+from crossing_env import ENV_ID
+
+
+def test_shipped_files_are_small_and_paired():
+    assert SHIPPED_PPO.is_file() and SHIPPED_PPO.stat().st_size <= 2 * 2**20
+    assert stats_path(SHIPPED_PPO).is_file()
+
+
+def test_ppo_is_in_the_default_table_only_with_the_rl_extra(monkeypatch):
+    monkeypatch.setattr(plugins, "sb3_available", lambda: True)
+    assert plugins.default_policies() == (list(POLICIES), None)
+    monkeypatch.setattr(plugins, "sb3_available", lambda: False)
+    policies, note = plugins.default_policies()
+    assert "ppo" not in policies and "rl" in note
+
+
+def test_shipped_ppo_drives():
+    pytest.importorskip("stable_baselines3", reason="optional extra 'rl' not installed")
+    env = gym.make(ENV_ID, scenario="zebra_case1")
+    obs, _ = env.reset(seed=0)
+    policy = make_policy("ppo")
+    assert policy.stats is not None  # VecNormalize statistics loaded from beside the zip
+    assert not policy_uses_predictors("ppo")
+    actions = []
+    for _ in range(30):
+        a = policy(obs)
+        assert a.shape == (1,) and a.dtype == np.float32 and -1.0 <= a[0] <= 1.0
+        actions.append(float(a[0]))
+        obs, *_ = env.step(a)
+    assert np.ptp(actions) > 0  # it reacts to the observation, not a constant

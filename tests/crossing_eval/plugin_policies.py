@@ -1,0 +1,40 @@
+"""A user's policy module, as `crossing-eval --policies tests.crossing_eval.plugin_policies:...` finds it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import ClassVar
+
+import numpy as np
+
+from agents import DrivingConfig
+
+
+def gentle_brake(scenario=None, dt=None):
+    """A factory: a policy that always brakes gently (an obviously different row from the built-ins)."""
+
+    def policy(obs):
+        return np.full((*np.shape(obs["ego"])[:-1], 1), -0.2, dtype=np.float32)
+
+    return policy
+
+
+@dataclass(frozen=True)
+class CoastConfig(DrivingConfig):
+    """Config of `Coast` (the built-ins' protocol: a config dataclass filled from the scenario)."""
+
+    throttle: float = 0.1
+    """Constant action."""
+
+
+class Coast:
+    """A policy class with the built-ins' protocol: `Coast(config)`, `config_class`, `uses_predictors`."""
+
+    config_class: ClassVar[type] = CoastConfig
+    uses_predictors: ClassVar[bool] = False
+
+    def __init__(self, config: CoastConfig) -> None:
+        self.config = config
+
+    def __call__(self, obs):
+        return np.full((*np.shape(obs["ego"])[:-1], 1), self.config.throttle, dtype=np.float32)

@@ -1,0 +1,138 @@
+"""Plug-ins in `crossing-eval`: pkg.module:attr, entry points, SB3 zips, predictor checkpoints."""
+
+from __future__ import annotations
+
+import os
+from importlib.metadata import EntryPoint
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import agents.registry as registry
+from agents import make_policy, policy_names, register_policy
+from crossing_eval.cli import build_parser, main
+from crossing_eval.runners import run_tasks
+from crossing_eval.tasks import make_tasks
+
+PLUGIN = "tests.crossing_eval.plugin_policies"
+ARGS = ["--scenarios", "zebra_case1", "--episodes", "2", "--no-progress"]
+
+
+@pytest.fixture(scope="module")
+def sb3_zip(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An (untrained) SB3 PPO saved with its VecNormalize statistics beside it, as the recipe saves."""
+    pytest.importorskip("stable_baselines3", reason="optional extra 'rl' not installed")
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from crossing_env import ENV_ID
+
+    out = tmp_path_factory.mktemp("sb3")
+    venv = VecNormalize(DummyVecEnv([lambda: gym.make(ENV_ID)]))
+    venv.reset()
+    for _ in range(20):
+        venv.step(np.zeros((1, 1), np.float32))  # some statistics to save
+    model = PPO("MultiInputPolicy", venv, n_steps=32, batch_size=32, seed=0, device="cpu")
+    model.save(out / "model.zip")
+    venv.save(str(out / "model.vecnormalize.pkl"))
+    return out / "model.zip"
+
+
+def test_module_attr_factory_and_class_protocol():
+    from tests.crossing_eval.plugin_policies import Coast
+
+    obs = {"ego": np.zeros(6, np.float32)}
+    assert make_policy(f"{PLUGIN}:gentle_brake")(obs)[0] == pytest.approx(-0.2)
+    coast = make_policy(f"{PLUGIN}:Coast", throttle=0.3)
+    assert isinstance(coast, Coast) and coast(obs)[0] == pytest.approx(0.3)
+    with pytest.raises(ValueError, match="has no attribute 'nope'"):
+        make_policy(f"{PLUGIN}:nope")
+    with pytest.raises(ValueError, match="cannot import module"):
+        make_policy("no_such_module_xyz:policy")
+
+
+def test_register_policy_and_entry_points(monkeypatch):
+    register_policy("gentle_test", registry._import_attr(f"{PLUGIN}:gentle_brake"))
+    try:
+        assert "gentle_test" in policy_names()
+        with pytest.raises(ValueError, match="already registered"):
+            register_policy("gentle_test", lambda **_: None)
+        assert make_policy("gentle_test")({"ego": np.zeros(6)})[0] == pytest.approx(-0.2)
+    finally:
+        registry._REGISTRY.pop("gentle_test")
+    ep = EntryPoint("coaster", f"{PLUGIN}:Coast", registry.ENTRY_POINT_GROUP)
+    monkeypatch.setattr(registry, "entry_points", lambda group: [ep] if group == ep.group else [])
+    assert "coaster" in policy_names()
+    assert make_policy("coaster")({"ego": np.zeros(6)})[0] == pytest.approx(0.1)
+    assert "coaster" in build_parser().format_help()  # --help lists installed plug-ins
+
+
+def test_help_lists_the_names():
+    text = " ".join(build_parser().format_help().split())
+    for name in ("yielding", "constant_speed", "always_cautious", "ppo", "pkg.module:attr", "sb3:"):
+        assert name in text
+
+
+@pytest.mark.slow
+def test_plugin_and_sb3_rows_with_two_workers(sb3_zip: Path, tmp_path: Path, capsys):
+    spec = f"{PLUGIN}:gentle_brake"
+    code = main([*ARGS, "--policies", f"{spec},sb3:{sb3_zip}", "--workers", "2", "--out", str(tmp_path)])
+    assert code == 0
+    table = capsys.readouterr().out
+    assert spec in table
+    assert f"sb3:{sb3_zip.resolve()}" in table
+
+
+def test_sb3_policy_uses_its_vecnormalize_statistics(sb3_zip: Path):
+    from agents.sb3 import SB3Policy
+
+    pol = SB3Policy(sb3_zip)
+    assert pol.stats is not None and not pol.uses_predictors
+    obs = {k: np.ones(s.shape, np.float32) for k, s in pol.model.observation_space.spaces.items()}
+    norm = pol.normalise({k: v[None] for k, v in obs.items()})
+    rms = pol.stats["obs_rms"]["ego"]
+    expected = np.clip((1.0 - rms.mean) / np.sqrt(rms.var + pol.stats["epsilon"]), -10, 10)
+    np.testing.assert_allclose(norm["ego"][0], expected, rtol=1e-5)
+    action = pol(obs)
+    assert action.shape == (1,) and action.dtype == np.float32 and -1 <= action[0] <= 1
+
+
+def test_bad_plugins_and_predictors_exit_2(tmp_path: Path, capsys):
+    for bad, needle in (
+        (["--policies", "sb3:/no/such/model.zip"], "no such file"),
+        (["--policies", "no_such_module_xyz:policy"], "cannot import module"),
+        (["--predictor", str(tmp_path / "missing.pt")], "missing.pt"),
+    ):
+        with pytest.raises(SystemExit) as exc:
+            main([*ARGS, *bad, "--out", str(tmp_path)])
+        assert exc.value.code == 2
+        assert needle in capsys.readouterr().err
+
+
+def test_predictor_takes_a_checkpoint_path():
+    from predictors.train import WEIGHTS_DIR
+
+    ckpt = WEIGHTS_DIR / "s-cgru_all.pt"
+    rel = os.path.relpath(ckpt)
+    args = build_parser().parse_args(["--predictor", rel])
+    assert args.predictor == str(ckpt.resolve())
+    tasks = make_tasks(["zebra_case1"], ["yielding"], 1, 3, predictor=args.predictor, intention="none")
+    (record,) = run_tasks(tasks, workers=1, show_progress=False)
+    assert record.predictors == [f"trajectory:{ckpt.resolve()}"]
+
+
+@pytest.mark.ray
+@pytest.mark.slow
+def test_plugin_and_sb3_policies_as_ray_tasks(sb3_zip: Path):
+    ray = pytest.importorskip("ray", reason="optional extra 'ray' not installed")
+    os.environ.setdefault("RAY_AUTH_MODE", "disabled")
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    tasks = make_tasks(
+        ["zebra_case1"], [f"{PLUGIN}:gentle_brake", f"sb3:{sb3_zip.resolve()}"], 1, 5, "none", "none"
+    )
+    local = run_tasks(tasks, workers=1, show_progress=False)
+    remote = run_tasks(tasks, workers=2, backend="ray", show_progress=False)
+    assert not ray.is_initialized()
+    assert [r.actions for r in remote] == [r.actions for r in local]
