@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from agents import policy_uses_predictors
-from crossing_eval.tasks import EpisodeRecord, EpisodeTask, episode_seed
+from crossing_eval.tasks import EpisodeRecord, EpisodeTask, make_tasks
 
 GRID_KEYS = ("intention", "predictor")
 """The axes a grid spec may name."""
@@ -77,18 +77,7 @@ def make_grid_tasks(
     for pol in policies:
         combos = spec.combinations() if policy_uses_predictors(pol) else [("none", "none")]
         for intention, predictor in combos:
-            for sc in scenarios:
-                for ep in range(episodes):
-                    tasks.append(
-                        EpisodeTask(
-                            scenario=sc,
-                            policy=pol,
-                            episode=ep,
-                            seed=episode_seed(base_seed, sc, ep),
-                            predictor=predictor,
-                            intention=intention,
-                        )
-                    )
+            tasks += make_tasks(scenarios, [pol], episodes, base_seed, predictor, intention)
     return tasks
 
 
