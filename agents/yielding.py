@@ -155,6 +155,10 @@ class YieldingPolicy:
                 # Paths alone, except where constant velocity puts the pedestrian in the corridor soon (or
                 # now): paths come from 0.4 s histories and lag a sudden start.
                 guard = t_in <= getattr(cfg, "constant_velocity_guard", np.inf)
+                # At a zebra, someone walking towards the road at the crossing is kept on constant velocity:
+                # a path that (rightly) predicts a stop at the kerb is exactly when the law asks the car to
+                # be able to give way, so the car must not build up speed on it.
+                guard |= zebra & crossing_ahead & at_crossing
                 x_in = np.where(guard & (t_in <= pt_in), x_in, np.where(np.isfinite(pt_in), px_in, x_in))
                 t_in, t_out = (
                     np.where(guard, np.minimum(t_in, pt_in), pt_in),

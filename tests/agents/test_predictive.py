@@ -90,3 +90,18 @@ def test_closed_loop_with_the_oracle_intention_gives_way() -> None:
         done = terminated or truncated
     r = metrics.result()
     assert not r.collision and r.yield_obligations > 0 and r.yield_violations == 0
+
+
+def test_at_a_zebra_a_pedestrian_walking_to_the_road_keeps_constant_velocity() -> None:
+    """Found on four_lane_arterial: a path that rightly predicts a stop at the kerb let the car keep its
+    speed, and by the time the pedestrian stood waiting (a legal duty) it could no longer stop comfortably."""
+    x = crossing_centre(20.0)
+    ped = {"dx": x, "dy": -4.5, "vy": 1.0}  # at the crossing, on the sidewalk, 2.7 s from the corridor
+    paths = np.zeros((K, 12, 2), dtype=np.float32)
+    paths[0, :, 0], paths[0, :, 1] = x, -3.5  # the predictor: stops at the kerb
+    obs = dict(make_obs(12.0, 20.0, [ped]), predicted_paths=paths)
+    assert accel(YieldingPolicy()(obs))[0] < 0.0
+    assert accel(PredictiveYielding()(obs))[0] == accel(YieldingPolicy()(obs))[0]
+    # The same pedestrian away from a zebra (an unmarked crossing): the path is trusted.
+    unmarked = dict(make_obs(12.0, 20.0, [ped], zebra=False), predicted_paths=paths)
+    assert accel(PredictiveYielding()(unmarked))[0] >= 0.0
