@@ -63,10 +63,7 @@ class PredictiveYielding(YieldingPolicy):
         near_kerb = kerb_gap <= cfg.anticipation_kerb_distance
         # At a signalised crossing showing the car green, people at the kerb wait for their own green:
         # an intent to cross is no sign of stepping out now (a red-light runner is caught when it moves).
-        front = cfg.ego_length / 2
-        near_rel = front + view.to_stop[:, None] + cfg.stop_line_offset
-        far_rel = -view.past[:, None] - front
-        at_crossing = (view.px >= near_rel - cfg.kerb_margin) & (view.px <= far_rel + cfg.kerb_margin)
+        at_crossing = self._at_crossing(view)
         green = ((view.zebra < 0.5) & (view.car_green > 0.5) & (view.past < 0.0))[:, None]
         return super()._likely_to_cross(view, kerb_gap) & near_kerb & ~(green & at_crossing)
 

@@ -97,6 +97,17 @@ class YieldingPolicy:
             self._committed = np.zeros(needs_line.shape, dtype=bool)
         return self._committed & needs_line
 
+    def _crossing_span(self, view: View) -> tuple[np.ndarray, np.ndarray]:
+        """(near, far) edges of the crossing, (B, 1) each, relative to the ego's centre along x."""
+        front = self.config.ego_length / 2
+        return front + view.to_stop[:, None] + self.config.stop_line_offset, -view.past[:, None] - front
+
+    def _at_crossing(self, view: View) -> np.ndarray:
+        """(B, K) pedestrians within `kerb_margin` of the crossing along the road."""
+        near, far = self._crossing_span(view)
+        margin = self.config.kerb_margin
+        return (view.px >= near - margin) & (view.px <= far + margin)
+
     def _targets(self, view: View) -> tuple[np.ndarray, np.ndarray]:
         """(legal_target, conflict_target): stop distances (B,) ahead of the ego front, inf when none."""
         cfg = self.config
@@ -106,11 +117,8 @@ class YieldingPolicy:
         v = view.speed
 
         # Crossing geometry in the ego frame.
-        stop_rel = front + view.to_stop[:, None]  # (B, 1) centre → stop line
-        near_rel = stop_rel + cfg.stop_line_offset
-        far_rel = -view.past[:, None] - front
         crossing_ahead = view.past[:, None] < 0.0
-        at_crossing = (view.px >= near_rel - cfg.kerb_margin) & (view.px <= far_rel + cfg.kerb_margin)
+        at_crossing = self._at_crossing(view)
         # Stop target for crossing-related yields: the stop line, or the crossing's edge once past the line.
         line_target = np.where(
             view.to_stop > 0.0,
@@ -218,8 +226,7 @@ class YieldingPolicy:
         if veh.shape[1] == 0:
             return np.full(view.speed.shape, np.inf)
         front = cfg.ego_length / 2
-        near_rel = front + view.to_stop[:, None] + cfg.stop_line_offset
-        far_rel = -view.past[:, None] - front
+        near_rel, far_rel = self._crossing_span(view)
         veh_front = veh[..., 1] + veh[..., 5] / 2
         speed = np.hypot(veh[..., 3], veh[..., 4])
         beside = (np.abs(veh[..., 2]) >= cfg.lane_width / 2) & (np.abs(veh[..., 2]) <= 2.5 * cfg.lane_width)

@@ -125,7 +125,8 @@ class YieldTracker:
         open_ = status == OPEN
         dist = ca.stop_line_x - front
         can_open = may_open and dist > speed * speed / (2.0 * cfg.yield_deceleration)
-        candidates = can_open and np.count_nonzero((gt.on_crossing | gt.waiting) & (status == 0))
+        may_owe = obligation_candidates(gt)
+        candidates = can_open and np.count_nonzero((gt.on_crossing | gt.waiting) & (status == 0) & may_owe)
         if not candidates and not np.count_nonzero(open_):
             return 0  # nothing open and nobody who could open an obligation now
 
@@ -159,7 +160,7 @@ class YieldTracker:
             if cfg.far_half_counts:
                 toward = (0.5 * (ca.half_y_min + ca.half_y_max) - py) * gt.pedestrian_velocities[:, 1] > 0.0
                 relevant |= gt.on_crossing & ~in_half & toward
-            new = (status == 0) & (relevant | waiting) & obligation_candidates(gt)
+            new = (status == 0) & (relevant | waiting) & may_owe
             status[new] = OPEN
             entered_half |= new & in_half
 
