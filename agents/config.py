@@ -82,8 +82,13 @@ class YieldingConfig(DrivingConfig):
     kerb_distance: float = 2.0
     """A slow pedestrian on the sidewalk this close (m) to a kerb at the crossing counts as waiting, even
     when the observation's stricter `waiting` flag (1.2 m, 0.3 m/s) is off: people waiting shuffle about."""
-    waiting_speed: float = 0.5
-    """Speed (m/s) below which a pedestrian near the kerb counts as waiting."""
+    leaving_speed: float = 0.5
+    """A pedestrian on the sidewalk within `kerb_distance` of a kerb at the crossing counts as waiting unless
+    walking away from the road faster than this (m/s): standing, shuffling, stepping towards the road or
+    walking along the kerb all count. With no prediction the car cannot tell someone about to cross from
+    someone passing by, so it is ready to give way to both (UK rule 195: "be ready to slow down or stop");
+    the ground truth showed pedestrians in the waiting state who move at 1 m/s (shuffling, walking the
+    last metre to the zebra), which a speed test missed."""
     intention_threshold: float = 0.5
     """With `crossing_intention` in the observation, a pedestrian off the road with at least this
     probability is treated as about to cross: at the crossing it is yielded to like a waiting one, elsewhere
@@ -105,6 +110,18 @@ class YieldingConfig(DrivingConfig):
     more than `MetricsConfig.offer_timeout` (3 s), so the car never leaves before an offer counts as made."""
     dt: float = 0.1
     """Time between calls (s), the env's `EnvConfig.dt`; used by the offer timer."""
+    decline_match_radius: float = 0.5
+    """After an offer times out, the pedestrians then waiting are remembered by position (tracked step to
+    step within this radius, m); only they count as having declined. Someone who arrives at the kerb later
+    gets an offer of their own, as the law gives them one."""
+    still_speed: float = 0.5
+    """A waiting pedestrian's offer timer runs only while they stand (below this speed, m/s): someone still
+    walking up to the kerb has not declined anything yet."""
+    no_overtaking_zone: float = 30.0
+    """At a zebra, a vehicle in an adjacent lane of the ego's direction whose front is within this distance
+    (m) before the crossing (or on it) is not overtaken: the ego follows it (IDM, at most comfortable
+    braking). UK Highway Code rule 191: do not overtake the moving vehicle nearest the crossing, or the one
+    that has stopped to give way; it may hide a pedestrian it stops for."""
     occlusion_window: float = 15.0
     """A stationary vehicle counts as an occluder if its front is within this distance (m) before the
     crossing's near edge (or on the crossing)."""

@@ -60,12 +60,25 @@ class PredictiveYielding(YieldingPolicy):
 
     def _likely_to_cross(self, view: View, kerb_gap: np.ndarray) -> np.ndarray:
         cfg = self.config
+        if view.intent is not None:
+            # The intent to cross at all says who will cross, not when: it releases (below) but does not
+            # anticipate a walk-in now (a dev grid run that did stopped the car for pedestrians waiting for
+            # their own green: signalised_red_light delay 1.0 → 8.1 s).
+            return np.zeros_like(view.present)
         near_kerb = kerb_gap <= cfg.anticipation_kerb_distance
         # At a signalised crossing showing the car green, people at the kerb wait for their own green:
         # an intent to cross is no sign of stepping out now (a red-light runner is caught when it moves).
         at_crossing = self._at_crossing(view)
         green = ((view.zebra < 0.5) & (view.car_green > 0.5) & (view.past < 0.0))[:, None]
         return super()._likely_to_cross(view, kerb_gap) & near_kerb & ~(green & at_crossing)
+
+    def _anticipated(self, view: View, likely: np.ndarray) -> np.ndarray:
+        # At a zebra the legal yield already holds the car for someone expected to cross at the crossing,
+        # with the offer timeout when they keep waiting; anticipating a walk-in there as well would hold it
+        # without end for a pedestrian who waits for a gap in the other lanes (measured with the oracle
+        # intent on four_lane_arterial: pass rate 0.36 against 1.00 without it).
+        zebra = (view.zebra > 0.5)[:, None] & (view.past < 0.0)[:, None]
+        return likely & ~(zebra & self._at_crossing(view))
 
     def _yield_waiting(
         self, view: View, waiting: np.ndarray, likely: np.ndarray | None, kerb_gap: np.ndarray

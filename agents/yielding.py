@@ -6,6 +6,7 @@ It reads only the observation (never the ground truth); with the prediction wrap
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import ClassVar
 
 import numpy as np
@@ -33,12 +34,14 @@ class YieldingPolicy:
     nearest, as late as `comfortable_deceleration` allows (harder only when a target appears late):
 
     1. **Legal yield** (zebra, UK rule 195 / StVO §26): a pedestrian on the crossing inside the ego's half
-       of the road or walking towards it, or one waiting at the kerb within the crossing's extent ±
-       `kerb_margin` (or, with the intention wrapper on, predicted to cross there), makes the car stop
-       before the stop line; at a signalised crossing a red light for cars does. Attempted only if it needs
-       at most `yield_max_deceleration`: a car that can no longer stop comfortably does not slam on the
-       brakes for a pedestrian still on the kerb. If the car has stood at the line for `offer_timeout`
-       while the only reason was a pedestrian who keeps waiting, the offer counts as declined and it goes.
+       of the road or walking towards it, or one who may be waiting at the kerb within the crossing's
+       extent ± `kerb_margin` (within `kerb_distance` of the kerb and not walking away from the road: the
+       car cannot tell a pedestrian about to cross from one passing by; with the intention wrapper on,
+       also one predicted to cross there), makes the car stop before the stop line; at a signalised
+       crossing a red light for cars does. Attempted only if it needs at most `yield_max_deceleration`: a
+       car that can no longer stop comfortably does not slam on the brakes for a pedestrian still on the
+       kerb. If the car has stood at the line for `offer_timeout` while the only reason was people who
+       keep waiting, they have declined the offer and it goes; someone who arrives later gets an offer.
     2. **Conflict check** (any pedestrian, anywhere): with constant velocity, the predicted path (when
        ``predicted_paths`` is present) and, for pedestrians the intention estimate expects to cross, a walk
        straight into the road, the pedestrian's time inside the ego's lane corridor is compared with the
@@ -46,11 +49,13 @@ class YieldingPolicy:
        speed limit). If they overlap within `time_buffer`, the car stops `pedestrian_gap` before the
        pedestrian (or at the stop line when that is nearer), with any deceleration up to the maximum.
     3. **Occlusion**: a stationary vehicle beside the ego's lane just before the crossing may hide a
-       pedestrian (the multiple-threat case); the car passes it at `occlusion_speed`.
+       pedestrian (the multiple-threat case); the car passes it at `occlusion_speed`. At a zebra it does
+       not overtake the adjacent-lane vehicle nearest the crossing at all (UK rule 191).
 
     Otherwise it cruises at the speed limit and follows vehicles ahead (IDM). "Proceed when clear" falls
-    out of re-evaluating the rules each step; the only state is the offer timer, one per batch element,
-    which resets itself when the car is far before or past a crossing (`reset` clears it explicitly).
+    out of re-evaluating the rules each step; the only state is the offer timer and who declined (per
+    batch element), which reset themselves when the car is far before or past a crossing (`reset` clears
+    them explicitly).
 
     Departures from the literature: legal rules are simplified to what the observation shows (no gaze or
     gesture); the German "influenced" test is approximated by stopping at the line rather than creeping
@@ -62,34 +67,62 @@ class YieldingPolicy:
 
     def __init__(self, config: YieldingConfig | None = None) -> None:
         self.config = config or YieldingConfig()
-        self._stopped = np.zeros(0)
-        self._declined = np.zeros(0, dtype=bool)
+        self._offers = np.zeros((0, 0, 3))
         self._committed = np.zeros(0, dtype=bool)
 
     def reset(self) -> None:
         """Forget offer timers and stop commitments (call between episodes; they also reset by themselves)."""
-        self._stopped = np.zeros(0)
-        self._declined = np.zeros(0, dtype=bool)
+        self._offers = np.zeros((0, 0, 3))
         self._committed = np.zeros(0, dtype=bool)
 
-    def _offer_state(self, view: View, waiting_only: np.ndarray) -> np.ndarray:
-        """Update the per-batch-element offer timers; return which elements treat the offer as declined.
+    def _offer_state(self, view: View, waiting: np.ndarray, legal_xing: np.ndarray) -> np.ndarray:
+        """Update the offer timers; return (B, K): which waiting pedestrians have declined the car's offer.
 
-        A timer runs while the car stands (< 0.1 m/s) within a few metres of the stop line and the only
-        reason to stand is a pedestrian waiting at the kerb. After `offer_timeout` the offer counts as
-        declined until the car has passed the crossing or is again far (> 20 m) before the line, which
-        also makes timers reset by themselves at the start of an episode in a vector env.
+        Each pedestrian standing (below `still_speed`) at the crossing while the car stands (< 0.1 m/s)
+        within a few metres of the stop line, with no one on the crossing to give way to, has been offered
+        the way; after `offer_timeout` of that they have declined it. Pedestrians carry no identity in the
+        observation, so they are tracked by position (the nearest waiting pedestrian within
+        `decline_match_radius` of where they were last step), as (x, y, offered time) per batch element,
+        until the car has passed the crossing or is again far (> 20 m) before the line, which also resets
+        a vector env's elements at the start of an episode. Someone who arrives later starts their own
+        timer: the metric, and the law, give them their own offer.
         """
-        b = view.speed.shape[0]
-        if self._stopped.shape[0] != b:
-            self._stopped = np.zeros(b)
-            self._declined = np.zeros(b, dtype=bool)
+        b, k = waiting.shape
+        if self._offers.shape[:2] != (b, k):
+            self._offers = np.full((b, k, 3), np.nan)
+        offers = self._offers
         fresh = (view.past >= 0.0) | (view.to_stop > 20.0)
-        self._declined &= ~fresh
-        standing = (view.speed < 0.1) & (view.to_stop < 3.0) & waiting_only
-        self._stopped = np.where(standing, self._stopped + self.config.dt, 0.0)
-        self._declined |= self._stopped >= self.config.offer_timeout - 1e-9
-        return self._declined.copy()
+        offers[fresh] = np.nan
+        tracked = np.isfinite(offers[..., 0])  # (B, D)
+        match = np.full((b, k), -1)
+        if tracked.any():
+            dx = view.px[:, :, None] - offers[:, None, :, 0]
+            dy = view.py[:, :, None] - offers[:, None, :, 1]
+            dist = np.where(waiting[:, :, None] & tracked[:, None, :], np.hypot(dx, dy), np.inf)  # (B,K,D)
+            nearest = np.argmin(dist, axis=2)
+            close = (
+                np.take_along_axis(dist, nearest[..., None], axis=2)[..., 0]
+                <= self.config.decline_match_radius
+            )
+            match = np.where(close, nearest, -1)
+        standing = (view.speed < 0.1) & (view.to_stop < 3.0) & ~legal_xing
+        still = np.hypot(view.vx, view.vy) < self.config.still_speed
+        for e in np.flatnonzero(waiting.any(axis=1) | tracked.any(axis=1)):
+            for slot in np.flatnonzero(waiting[e]):
+                d = match[e, slot]
+                if d < 0:
+                    if not standing[e]:
+                        continue
+                    free = np.flatnonzero(~np.isfinite(offers[e, :, 0]))
+                    if not free.shape[0]:
+                        continue
+                    d = match[e, slot] = free[0]
+                    offers[e, d, 2] = 0.0
+                offers[e, d, :2] = view.px[e, slot], view.py[e, slot]
+                if standing[e] and still[e, slot]:
+                    offers[e, d, 2] += self.config.dt
+        timers = np.where(match >= 0, np.take_along_axis(offers[..., 2], np.maximum(match, 0), axis=1), 0.0)
+        return waiting & (timers >= self.config.offer_timeout - 1e-9)
 
     def _commitments(self, needs_line: np.ndarray) -> np.ndarray:
         """Which batch elements are already stopping for a legal duty that still holds."""
@@ -134,16 +167,18 @@ class YieldingPolicy:
         toward = (centre - view.py) * view.vy > 0.0
         on_xing = view.on_crossing & (in_half | toward)
         kerb_gap = np.minimum(np.abs(view.py - cfg.road_right), np.abs(view.py - cfg.road_left))
-        slow = np.hypot(view.vx, view.vy) < cfg.waiting_speed
-        waiting = (view.waiting | (view.present & slow & (kerb_gap <= cfg.kerb_distance))) & ~view.on_road
+        towards_road = np.where(view.py > 0.5 * (cfg.road_right + cfg.road_left), -view.vy, view.vy)
+        lingering = view.present & (towards_road > -cfg.leaving_speed) & (kerb_gap <= cfg.kerb_distance)
+        waiting = (view.waiting | lingering) & ~view.on_road
         likely = self._likely_to_cross(view, kerb_gap) if use_pred and view.intention is not None else None
         waiting = self._yield_waiting(view, waiting, likely, kerb_gap)
         zebra = view.zebra[:, None] > 0.5
         legal_xing = (zebra & crossing_ahead & at_crossing & on_xing).any(axis=1)
-        legal_wait = (zebra & crossing_ahead & at_crossing & waiting).any(axis=1)
-        declined = self._offer_state(view, legal_wait & ~legal_xing)
+        waiting_here = zebra & crossing_ahead & at_crossing & waiting
+        declined = self._offer_state(view, waiting_here, legal_xing)
+        legal_wait = (waiting_here & ~declined).any(axis=1)
         red = (view.zebra < 0.5) & (view.car_green < 0.5) & (view.past < 0.0)
-        needs_line = legal_xing | (legal_wait & ~declined) | red
+        needs_line = legal_xing | legal_wait | red
         with np.errstate(divide="ignore", invalid="ignore"):
             a_req = np.where(line_target > 0.05, v * v / (2.0 * np.maximum(line_target, 0.05)), np.inf)
         # A legal stop starts only when it is comfortable, but once started it is not given up while the
@@ -176,14 +211,15 @@ class YieldingPolicy:
                 x_in = np.where(pt_in < t_in, px_in, x_in)
                 t_in = np.minimum(t_in, pt_in)
                 t_out = np.maximum(t_out, pt_out)
-        if likely is not None:
+        anticipated = None if likely is None else self._anticipated(view, likely)
+        if anticipated is not None:
             # Anticipation: a pedestrian the intention estimate expects to cross walks straight in.
             towards_lane = np.where(view.py > 0.0, -1.0, 1.0) * cfg.assumed_walking_speed
             a_in, a_out = corridor_interval(view.py, towards_lane, hw)
-            a_in = np.where(likely, a_in, np.inf)
+            a_in = np.where(anticipated, a_in, np.inf)
             x_in = np.where(a_in < t_in, view.px, x_in)
             t_in = np.minimum(t_in, a_in)
-            t_out = np.maximum(t_out, np.where(likely, a_out, -np.inf))
+            t_out = np.maximum(t_out, np.where(anticipated, a_out, -np.inf))
         behind = x_in + r < -front
         s_arr = x_in - r - front
         s_clr = x_in + r + front
@@ -212,6 +248,10 @@ class YieldingPolicy:
     def _likely_to_cross(self, view: View, kerb_gap: np.ndarray) -> np.ndarray:
         """(B, K) pedestrians off the road that the intention estimate expects to cross (hook)."""
         return (view.intention >= self.config.intention_threshold) & view.present & ~view.on_road
+
+    def _anticipated(self, view: View, likely: np.ndarray) -> np.ndarray:
+        """(B, K) pedestrians assumed to walk straight into the road in the conflict check (hook)."""
+        return likely
 
     def _yield_waiting(
         self, view: View, waiting: np.ndarray, likely: np.ndarray | None, kerb_gap: np.ndarray
@@ -253,6 +293,42 @@ class YieldingPolicy:
             )
         return a
 
+    def _no_overtaking(self, view: View) -> np.ndarray:
+        """IDM acceleration (B,) that keeps the ego behind the adjacent-lane vehicle nearest a zebra ahead.
+
+        UK Highway Code rule 191: within the approach to a crossing, do not overtake the moving vehicle
+        nearest it, or the one that has stopped to give way (it may hide the pedestrian it stops for).
+        Candidates drive in the ego's direction in another lane of its half of the road (parked cars stand
+        outside the carriageway), are ahead of the ego and have their front within `no_overtaking_zone`
+        before the crossing's near edge, or on it. Braking is capped at the comfortable deceleration: this
+        is a rule of the approach, not an emergency.
+        """
+        cfg = self.config
+        veh = view.vehicles
+        if veh.shape[1] == 0:
+            return np.full(view.speed.shape, np.inf)
+        near_rel, far_rel = self._crossing_span(view)
+        veh_front = veh[..., 1] + veh[..., 5] / 2
+        dy = veh[..., 2]
+        adjacent = (np.abs(dy) >= cfg.lane_width / 2) & (dy > cfg.road_right) & (dy < cfg.half_left)
+        candidate = (
+            (veh[..., 0] > 0.5)
+            & adjacent
+            & (veh[..., 3] > -0.5)
+            & (veh[..., 1] > 0.0)
+            & (veh_front >= near_rel - cfg.no_overtaking_zone)
+            & (veh_front <= far_rel)
+            & (view.zebra[:, None] > 0.5)
+            & (view.past[:, None] < 0.0)
+        )
+        if not candidate.any():
+            return np.full(view.speed.shape, np.inf)
+        masked = veh.copy()
+        masked[..., 0] = candidate
+        masked[..., 2] = 0.0  # treat it as if in the ego's lane
+        a = follow(replace(view, vehicles=masked), cfg)
+        return np.maximum(a, -cfg.comfortable_deceleration)
+
     def acceleration(self, obs: ObsLike) -> np.ndarray:
         """Commanded acceleration (m/s²) of shape (B,) for the flattened batch."""
         view = parse_observation(obs)
@@ -268,7 +344,8 @@ class YieldingPolicy:
         a_conf = stop_acceleration(
             view, conflict, cfg.comfortable_deceleration, cfg.stop_gain, cfg.ego.max_deceleration
         )
-        return np.minimum(np.minimum(a, self._occlusion_cap(view)), np.minimum(a_legal, a_conf))
+        a = np.minimum(a, np.minimum(self._occlusion_cap(view), self._no_overtaking(view)))
+        return np.minimum(a, np.minimum(a_legal, a_conf))
 
     def __call__(self, obs: ObsLike) -> np.ndarray:
         """Normalised action(s) for one or a batch of observations."""

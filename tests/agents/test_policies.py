@@ -151,8 +151,14 @@ def test_yielding_uses_predictions_and_intention() -> None:
     assert accel(pol(obs_pred))[0] < -1.0
     assert accel(YieldingPolicy(YieldingConfig(use_predictions=False))(obs_pred))[0] >= 0.0
 
-    # Walking along the sidewalk towards the zebra (not waiting): yield only if predicted to cross.
-    walker = {"dx": crossing_centre(25.0) - 1.0, "dy": -3.0, "vx": 1.3}
+    # Walking along the kerb at the zebra: with no prediction the car cannot tell a passer-by from someone
+    # about to cross, so it is ready to give way; walking away from the road, it is not.
+    by_kerb = {"dx": crossing_centre(25.0) - 1.0, "dy": -3.0, "vx": 1.3}
+    assert accel(pol(make_obs(12.0, 25.0, [by_kerb])))[0] < -2.0
+    leaving = dict(by_kerb, vx=0.0, vy=-1.3)
+    assert accel(pol(make_obs(12.0, 25.0, [leaving])))[0] >= 0.0
+    # Walking along the sidewalk further from the kerb (not waiting): yield only if predicted to cross.
+    walker = {"dx": crossing_centre(25.0) - 1.0, "dy": -4.0, "vx": 1.3}
     base = make_obs(12.0, 25.0, [walker])
     low = dict(base, crossing_intention=np.r_[0.1, np.zeros(K - 1)].astype(np.float32))
     high = dict(base, crossing_intention=np.r_[0.9, np.zeros(K - 1)].astype(np.float32))
@@ -180,6 +186,17 @@ def test_yielding_follows_vehicle_ahead_and_slows_beside_stopped_vehicle() -> No
     assert accel(pol(make_obs(13.0, 25.0)))[0] >= 0.0
 
 
+def test_yielding_does_not_overtake_the_vehicle_nearest_a_zebra() -> None:
+    """UK rule 191: a car slowing in the next lane of the ego's direction before a zebra is not overtaken."""
+    pol = YieldingPolicy(YieldingConfig(half_right=-5.25, road_right=-5.25))  # two lanes each way
+    slowing = {"dx": 15.0, "dy": -3.5, "vx": 6.0}
+    assert accel(pol(make_obs(13.0, 25.0, vehicles=[slowing])))[0] < -1.0
+    # Far from any crossing it may be overtaken; a parked car (outside the carriageway) never counts.
+    assert accel(pol(make_obs(13.0, 150.0, vehicles=[slowing])))[0] >= 0.0
+    parked = {"dx": 15.0, "dy": -6.5, "vx": 0.0}
+    assert accel(pol(make_obs(13.0, 60.0, vehicles=[parked])))[0] >= 0.0
+
+
 def test_yielding_offer_declined_after_timeout() -> None:
     """Stopped at the line for a pedestrian who keeps waiting: after the timeout the car goes."""
     cfg = YieldingConfig(offer_timeout=1.0, dt=0.1)
@@ -189,6 +206,12 @@ def test_yielding_offer_declined_after_timeout() -> None:
     actions = [float(accel(pol(obs))[0]) for _ in range(15)]
     assert actions[0] < 0.0
     assert actions[-1] > 0.0
+    # Someone who arrives at the kerb after the offer timed out gets an offer of their own.
+    newcomer = {"dx": crossing_centre(0.5) + 1.0, "dy": 6.0, "w": 1}  # at the far kerb
+    assert accel(pol(make_obs(0.0, 0.5, [waiting, newcomer])))[0] <= 0.0
+    # ...and declines it in turn: then the car goes again.
+    after = [float(accel(pol(make_obs(0.0, 0.5, [waiting, newcomer])))[0]) for _ in range(15)]
+    assert after[-1] > 0.0
     # A pedestrian on the crossing is never "declined".
     pol.reset()
     on = {"dx": crossing_centre(0.5), "dy": 0.0, "vy": 1.2, "oc": 1, "road": 1}
