@@ -89,6 +89,11 @@ class TrainConfig:
     """beta of the beta-NLL loss (0 = plain Gaussian NLL); see ``models.bivariate_nll``."""
     teacher_forcing: int = 0
     """1: feed the ground truth back during the future steps (Social-LSTM); 0: feed the predicted means."""
+    patience: int = 0
+    """Early stopping: stop after this many epochs without a better val ADE (0 = run every epoch)."""
+    lr_plateau: int = 0
+    """Halve the learning rate after this many epochs without a better val ADE (0 = constant rate):
+    the val ADE of a constant 5e-4 swings by ±0.05 m from epoch to epoch, so it never settles."""
 
 
 def _union_split(root: Path, split: str) -> Windows:
@@ -250,6 +255,11 @@ def train(cfg: TrainConfig) -> Path:
     )
     model = SocialRecurrent(mcfg)
     opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    plateau = (
+        torch.optim.lr_scheduler.ReduceLROnPlateau(opt, factor=0.5, patience=cfg.lr_plateau - 1)
+        if cfg.lr_plateau > 0
+        else None
+    )
     best = (float("inf"), float("inf"))
     best_epoch, t0, windows_seen = -1, time.time(), 0
     history: list[dict[str, float]] = []
@@ -291,10 +301,17 @@ def train(cfg: TrainConfig) -> Path:
                 "teacher_forcing": cfg.teacher_forcing,
                 "nll_beta": cfg.nll_beta,
                 "cv_residual": cfg.cv_residual,
+                "patience": cfg.patience,
+                "lr_plateau": cfg.lr_plateau,
             }
             save_checkpoint(out, model, meta)
+        if plateau is not None:
+            plateau.step(val[0])
         if cfg.max_minutes and time.time() - t0 > 60.0 * cfg.max_minutes:
             print(f"time budget of {cfg.max_minutes} min reached after epoch {epoch + 1}")
+            break
+        if cfg.patience and epoch + 1 - best_epoch >= cfg.patience:
+            print(f"early stop: no better val ADE for {cfg.patience} epochs (best epoch {best_epoch})")
             break
     # Record the full budget in the selected checkpoint.
     final = load_model(out)

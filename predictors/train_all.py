@@ -1,7 +1,10 @@
 """Train every model kind on every leave-one-out scene (and SDD) at once, one process per run.
 
 Run: ``python -m predictors.train_all [--jobs 16] [--minutes 3] [--out-dir DIR] [--models ...] [--scenes ...]
-[--hidden-size 128 --embed-size 64]``.
+[--hidden-size 128 --embed-size 64] [--seeds 0,1,2] [--train-fraction 1 --patience 8 --lr-plateau 3]``.
+
+With ``--seeds`` every run is repeated per seed into ``<out-dir>/seed<k>/`` (evaluate each folder with
+``predictors.evaluate --weights-dir ... --save``, then ``predictors.seed_table`` gives mean ± sd).
 
 Each run is one :func:`predictors.train.train` with one torch thread and its own wall-clock budget, so
 a machine with ``jobs`` free cores trains the whole table in about ``ceil(runs / jobs)`` budgets. A run's
@@ -62,13 +65,32 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--hidden-size", type=int, default=TrainConfig.hidden_size)
     p.add_argument("--embed-size", type=int, default=TrainConfig.embed_size)
     p.add_argument("--seed", type=int, default=TrainConfig.seed)
+    p.add_argument(
+        "--seeds",
+        default="",
+        help="comma list of seeds: every run once per seed, into <out-dir>/seed<k>/ (overrides --seed)",
+    )
     p.add_argument("--epochs", type=int, default=TrainConfig.epochs, help="maximum epochs of each run")
+    p.add_argument(
+        "--train-fraction", type=float, default=TrainConfig.train_fraction, help="share of windows per epoch"
+    )
+    p.add_argument("--patience", type=int, default=TrainConfig.patience, help="early-stopping patience")
+    p.add_argument(
+        "--lr-plateau", type=int, default=TrainConfig.lr_plateau, help="halve lr after N flat epochs"
+    )
     a = p.parse_args(argv)
     models = [m for m in a.models.split(",") if m]
     scenes = [s for s in a.scenes.split(",") if s]
     problems = [f"--models: unknown {m!r}" for m in models if m not in MODEL_KINDS]
     problems += [f"--scenes: unknown {s!r}" for s in scenes if s not in (*SCENES, "sdd", "all")]
     problems += [f"--jobs must be >= 1, got {a.jobs}"] if a.jobs < 1 else []
+    try:
+        seeds = [int(k) for k in a.seeds.split(",") if k.strip()]
+    except ValueError:
+        seeds = []
+        problems.append(f"--seeds must be a comma list of integers, got {a.seeds!r}")
+    if seeds and is_shipped(Path(a.out_dir) / "x.pt"):
+        problems.append("--seeds writes one folder per seed: choose an --out-dir outside predictors/weights")
     if problems:
         print(f"predictors.train_all: error: {'; '.join(problems)}", file=sys.stderr)
         return 2
@@ -82,13 +104,26 @@ def main(argv: list[str] | None = None) -> int:
         embed_size=a.embed_size,
         seed=a.seed,
         epochs=a.epochs,
+        train_fraction=a.train_fraction,
+        patience=a.patience,
+        lr_plateau=a.lr_plateau,
         threads=1,
     )
-    runs = {
-        f"{m}_{s}": replace(base, model=m, scene=s, out=str(out_dir / f"{m}_{s}.pt"), force=a.force)
-        for s in scenes
-        for m in models
-    }
+    if seeds:
+        runs = {
+            f"seed{k}_{m}_{s}": replace(
+                base, model=m, scene=s, seed=k, out=str(out_dir / f"seed{k}" / f"{m}_{s}.pt"), force=a.force
+            )
+            for k in seeds
+            for s in scenes
+            for m in models
+        }
+    else:
+        runs = {
+            f"{m}_{s}": replace(base, model=m, scene=s, out=str(out_dir / f"{m}_{s}.pt"), force=a.force)
+            for s in scenes
+            for m in models
+        }
     failed = 0
     context = multiprocessing.get_context("spawn")  # no forked torch/numba thread state in the workers
     pool = ProcessPoolExecutor(max_workers=a.jobs, mp_context=context)

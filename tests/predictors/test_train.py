@@ -187,3 +187,62 @@ def test_checkpoint_that_tries_to_run_code_is_refused(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match=r"evil\.pt"):
         load_model(evil)
     assert not marker.exists()
+
+
+def test_train_stops_early_without_val_progress(data_root: Path, tmp_path: Path) -> None:
+    """With patience 1, a run stops at the first epoch that does not improve the val ADE."""
+    out = tmp_path / "m.pt"
+    args = [
+        "--model",
+        "lstm",
+        "--scene",
+        "eth",
+        "--epochs",
+        "30",
+        "--data",
+        str(data_root),
+        "--out",
+        str(out),
+    ]
+    assert main([*args, "--patience", "1", "--lr-plateau", "1", "--lr", "0.05"]) == 0
+    meta = checkpoint_meta(out)
+    vals = [h["val_ade"] for h in meta["history"]]
+    assert meta["epochs_run"] < 30
+    assert meta["epochs_run"] == meta["best_epoch"] + 1  # stopped right after the first non-improvement
+    assert min(vals[:-1]) <= vals[-1]
+    assert meta["patience"] == 1 and meta["lr_plateau"] == 1
+
+
+def test_seed_table_reports_mean_sd_and_the_verdict() -> None:
+    from predictors.seed_table import table
+
+    def run(model_ade: float) -> dict:
+        res = {"s-cgru": {}, "dcvm": {}}
+        for s in ("eth", "hotel", "univ", "zara1", "zara2"):
+            res["s-cgru"][s] = {"k1": [model_ade, 1.0], "ped20": [model_ade / 2, 0.5], "es": [1.0, 0.0]}
+            res["dcvm"][s] = {"k1": [0.50, 1.0], "ped20": [0.30, 0.5], "es": [1.0, 0.0]}
+        return {"results": res}
+
+    text, wins = table([run(0.40), run(0.42), run(0.44)], "s-cgru", "dcvm")
+    assert "0.420 ± 0.020 (3)" in text and wins == 5  # 0.42 vs 0.50 at K=1, 0.21 vs 0.30 at best-of-20
+    _, wins = table([run(0.30), run(0.70)], "s-cgru", "dcvm")
+    assert wins == 0  # mean 0.50: no better at K=1, and the seed sd (0.28) swamps any difference
+
+
+def test_train_all_repeats_runs_per_seed(data_root: Path, tmp_path: Path) -> None:
+    from predictors import train_all
+
+    out = tmp_path / "w"
+    args = [
+        "--data",
+        str(data_root),
+        "--out-dir",
+        str(out),
+        "--log-dir",
+        str(tmp_path / "logs"),
+        "--epochs",
+        "1",
+    ]
+    assert train_all.main([*args, "--models", "lstm", "--scenes", "eth", "--seeds", "3,4"]) == 0
+    assert [checkpoint_meta(out / f"seed{k}" / "lstm_eth.pt")["seed"] for k in (3, 4)] == [3, 4]
+    assert train_all.main([*args, "--seeds", "one"]) == 2
