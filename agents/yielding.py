@@ -107,20 +107,22 @@ class YieldingPolicy:
             match = np.where(close, nearest, -1)
         standing = (view.speed < 0.1) & (view.to_stop < 3.0) & ~legal_xing
         still = np.hypot(view.vx, view.vy) < self.config.still_speed
-        for e in np.flatnonzero(waiting.any(axis=1) | tracked.any(axis=1)):
-            for slot in np.flatnonzero(waiting[e]):
-                d = match[e, slot]
-                if d < 0:
-                    if not standing[e]:
-                        continue
-                    free = np.flatnonzero(~np.isfinite(offers[e, :, 0]))
-                    if not free.shape[0]:
-                        continue
-                    d = match[e, slot] = free[0]
-                    offers[e, d, 2] = 0.0
-                offers[e, d, :2] = view.px[e, slot], view.py[e, slot]
-                if standing[e] and still[e, slot]:
-                    offers[e, d, 2] += self.config.dt
+        # Newcomers while the car stands get a free tracking slot each (free slots in order, per element).
+        new = waiting & (match < 0) & standing[:, None]
+        if new.any():
+            free = ~np.isfinite(offers[..., 0])
+            order = np.argsort(~free, axis=1, kind="stable")  # free slots first
+            rank = np.cumsum(new, axis=1) - 1
+            new &= rank < free.sum(axis=1)[:, None]
+            slot = np.take_along_axis(order, np.clip(rank, 0, k - 1), axis=1)
+            match = np.where(new, slot, match)
+            e, p = np.nonzero(new)
+            offers[e, slot[e, p], 2] = 0.0
+        e, p = np.nonzero(match >= 0)
+        d = match[e, p]
+        offers[e, d, 0] = view.px[e, p]
+        offers[e, d, 1] = view.py[e, p]
+        offers[e, d, 2] += np.where(standing[e] & still[e, p], self.config.dt, 0.0)
         timers = np.where(match >= 0, np.take_along_axis(offers[..., 2], np.maximum(match, 0), axis=1), 0.0)
         return waiting & (timers >= self.config.offer_timeout - 1e-9)
 

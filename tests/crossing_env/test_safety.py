@@ -646,6 +646,9 @@ def test_wilson_interval() -> None:
     lo, hi = wilson_interval(5, 10)
     assert lo == pytest.approx(0.236590, abs=1e-6) and hi == pytest.approx(0.763410, abs=1e-6)
     assert wilson_interval(0, 0) == (0.0, 1.0)
+    # At 0 or n successes the bound is exactly the estimate: rounding put it a hair inside for n = 27
+    # (0/27), which made crossing-eval's safety-vs-efficiency plot fail on a negative error bar.
+    assert all(wilson_interval(0, n)[0] == 0.0 and wilson_interval(n, n)[1] == 1.0 for n in range(1, 500))
     with pytest.raises(ValueError, match="successes"):
         wilson_interval(11, 10)
 
