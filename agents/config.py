@@ -118,10 +118,12 @@ class YieldingConfig(DrivingConfig):
     """A waiting pedestrian's offer timer runs only while they stand (below this speed, m/s): someone still
     walking up to the kerb has not declined anything yet."""
     no_overtaking_zone: float = 30.0
-    """At a zebra, a vehicle in an adjacent lane of the ego's direction whose front is within this distance
-    (m) before the crossing (or on it) is not overtaken: the ego follows it (IDM, at most comfortable
-    braking). UK Highway Code rule 191: do not overtake the moving vehicle nearest the crossing, or the one
-    that has stopped to give way; it may hide a pedestrian it stops for."""
+    """At a zebra, a moving vehicle in an adjacent lane of the ego's direction whose front is within this
+    distance (m) before the crossing (or on it) is not overtaken: the ego follows it (IDM, at most
+    comfortable braking). UK Highway Code rule 191: do not overtake the moving vehicle nearest the
+    crossing; it may be slowing for a pedestrian it hides. A stopped one is passed at `occlusion_speed`."""
+    moving_speed: float = 0.5
+    """Speed (m/s) above which an adjacent-lane vehicle counts as moving for `no_overtaking_zone`."""
     occlusion_window: float = 15.0
     """A stationary vehicle counts as an occluder if its front is within this distance (m) before the
     crossing's near edge (or on the crossing)."""

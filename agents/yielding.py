@@ -299,11 +299,14 @@ class YieldingPolicy:
         """IDM acceleration (B,) that keeps the ego behind the adjacent-lane vehicle nearest a zebra ahead.
 
         UK Highway Code rule 191: within the approach to a crossing, do not overtake the moving vehicle
-        nearest it, or the one that has stopped to give way (it may hide the pedestrian it stops for).
-        Candidates drive in the ego's direction in another lane of its half of the road (parked cars stand
-        outside the carriageway), are ahead of the ego and have their front within `no_overtaking_zone`
-        before the crossing's near edge, or on it. Braking is capped at the comfortable deceleration: this
-        is a rule of the approach, not an emergency.
+        nearest it (it may be slowing for a pedestrian it hides). Candidates drive in the ego's direction,
+        faster than `moving_speed`, in another lane of its half of the road (parked cars stand outside the
+        carriageway), are ahead of the ego and have their front within `no_overtaking_zone` before the
+        crossing's near edge, or on it. Braking is capped at the comfortable deceleration: this is a rule
+        of the approach, not an emergency. A vehicle that has stopped is passed at `occlusion_speed`
+        instead (`_occlusion_cap`), ready to stop at the line: the rule also forbids passing it, but a
+        background driver who waits on a pedestrian who never crosses would then hold the ego for good (a
+        dev run of always_cautious stood 30 s behind one on four_lane_arterial).
         """
         cfg = self.config
         veh = view.vehicles
@@ -316,7 +319,7 @@ class YieldingPolicy:
         candidate = (
             (veh[..., 0] > 0.5)
             & adjacent
-            & (veh[..., 3] > -0.5)
+            & (veh[..., 3] > cfg.moving_speed)
             & (veh[..., 1] > 0.0)
             & (veh_front >= near_rel - cfg.no_overtaking_zone)
             & (veh_front <= far_rel)

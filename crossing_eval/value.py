@@ -7,8 +7,11 @@ rate, hard brakes per episode and the 5th percentile of the episodes' minimum TT
 difference to the same policy's ``none / none`` row, with a paired bootstrap 95 % interval
 (`scipy.stats.bootstrap`, ``paired=True``, percentile method, seeded): the rows ran on the same episodes,
 so resampling episodes keeps the pairs. "Value captured" is (none − row) / (none − oracle) of the
-censored delay, the oracle row being the one with every oracle the grid has; its interval comes from
-the same paired resampling of all three rows. Files: ``value_of_prediction.md``, ``.csv``, ``.png``.
+censored delay, the oracle row being the row's own predictors made perfect (``qlb / none`` against
+``oracle / none``, ``none / cvm`` against ``none / oracle``, ``qlb / s-cgru`` against ``oracle / oracle``);
+its interval comes from the same paired resampling of all three rows. It is left out ("–") where that
+oracle is not faster than no prediction: a share of a gain that does not exist means nothing.
+Files: ``value_of_prediction.md``, ``.csv``, ``.png``.
 """
 
 from __future__ import annotations
@@ -194,22 +197,31 @@ def value_table(
             theirs = [getattr(ref, n) for n in names]
             row[f"{m}_diff"] = row[m] - float(fn(*theirs))
             row[f"{m}_diff_ci"] = _interval([*mine, *theirs], _difference(fn, len(names)), n_resamples, seed)
-        oracle_key = _oracle_key(rows, policy)
+        oracle_key = _oracle_key(rows, key)
         row["value_captured"], row["value_captured_ci"] = math.nan, (math.nan, math.nan)
-        if ref is not None and oracle_key is not None and key not in (ref_key, oracle_key):
+        row["value_oracle"] = "" if oracle_key is None else f"{oracle_key[1]} / {oracle_key[2]}"
+        if ref is not None and oracle_key is not None and key != ref_key:
             o = cols[oracle_key].delay
-            row["value_captured"] = float(_captured(ref.delay, c.delay, o))
-            row["value_captured_ci"] = _interval([ref.delay, c.delay, o], _captured, n_resamples, seed)
+            if float(np.mean(ref.delay)) > float(np.mean(o)):
+                row["value_captured"] = float(_captured(ref.delay, c.delay, o))
+                row["value_captured_ci"] = _interval([ref.delay, c.delay, o], _captured, n_resamples, seed)
         out.append(row)
     return out
 
 
-def _oracle_key(rows: dict[tuple[str, str, str], Any], policy: str) -> tuple[str, str, str] | None:
-    """The row of `policy` with every oracle the grid has (None if the grid has no oracle)."""
-    names = {(i, p) for (pol, i, p) in rows if pol == policy}
-    i = "oracle" if any(i == "oracle" for i, _ in names) else "none"
-    p = "oracle" if any(p == "oracle" for _, p in names) else "none"
-    return (policy, i, p) if (i, p) != ("none", "none") and (i, p) in names else None
+def _oracle_key(
+    rows: dict[tuple[str, str, str], Any], key: tuple[str, str, str]
+) -> tuple[str, str, str] | None:
+    """The bound of row `key`: its real predictors replaced by the oracles.
+
+    None for an oracle or no-prediction row, or when the grid lacks that oracle row.
+    """
+    policy, intention, predictor = key
+    real = [x not in ("none", "oracle") for x in (intention, predictor)]
+    if not any(real):
+        return None
+    bound = (policy, "oracle" if real[0] else intention, "oracle" if real[1] else predictor)
+    return bound if bound in rows else None
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -247,7 +259,9 @@ def format_markdown(table: Sequence[dict[str, Any]], settings: dict[str, Any]) -
         f" {settings['seed']}; every row on the same episodes. Cells: value, then the difference to the"
         " policy's `none / none` row with its paired bootstrap 95 % interval. Delay counts episodes that"
         " never passed the crossing at their duration. Value captured = (none − row) / (none − oracle)"
-        " of that delay. **oracle** rows are privileged (ground truth): upper bounds, not predictors.",
+        " of that delay, the oracle being the row's own predictors made perfect (`qlb / none` against"
+        ' `oracle / none`); "–" where that oracle is not faster than no prediction. **oracle** rows are'
+        " privileged (ground truth): upper bounds, not predictors.",
         "",
         "| " + " | ".join(head) + " |",
         "|" + "---|" * len(head),
@@ -274,7 +288,7 @@ def format_csv(table: Sequence[dict[str, Any]]) -> str:
     header = ["policy", "intention", "predictor", "episodes"]
     for m, _, _ in _COLUMNS:
         header += [m, f"{m}_diff", f"{m}_diff_lo", f"{m}_diff_hi"]
-    header += ["value_captured", "value_captured_lo", "value_captured_hi"]
+    header += ["value_captured", "value_captured_lo", "value_captured_hi", "value_oracle"]
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(header)
@@ -282,7 +296,7 @@ def format_csv(table: Sequence[dict[str, Any]]) -> str:
         line: list[Any] = [row["policy"], row["intention"], row["predictor"], row["episodes"]]
         for m, _, _ in _COLUMNS:
             line += [row[m], row[f"{m}_diff"], *row[f"{m}_diff_ci"]]
-        line += [row["value_captured"], *row["value_captured_ci"]]
+        line += [row["value_captured"], *row["value_captured_ci"], row["value_oracle"]]
         w.writerow(["nan" if isinstance(x, float) and math.isnan(x) else x for x in line])
     return buf.getvalue()
 

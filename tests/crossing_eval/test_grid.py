@@ -88,6 +88,25 @@ def test_value_table_differences_and_value_captured() -> None:
     assert math.isnan(oracle["value_captured"])  # the oracle row is the bound itself
 
 
+def test_value_captured_compares_each_row_with_its_own_oracle() -> None:
+    """A trajectory predictor is measured against the path oracle, an intention model against the intent
+    oracle; where the oracle is no faster than no prediction, the share is left out."""
+    recs = []
+    for ep, d in enumerate([10.0, 12.0, 14.0, 16.0]):
+        recs.append(_record("none", "none", ep, d))
+        recs.append(_record("qlb", "none", ep, d - 1.0))
+        recs.append(_record("oracle", "none", ep, d - 4.0))
+        recs.append(_record("none", "cvm", ep, d - 1.0))
+        recs.append(_record("none", "oracle", ep, d + 1.0))  # the path oracle is slower
+        recs.append(_record("oracle", "oracle", ep, d - 2.0))
+        recs.append(_record("qlb", "cvm", ep, d - 1.0))
+    table = {(r["intention"], r["predictor"]): r for r in value_table(group_rows(recs), n_resamples=100)}
+    assert table[("qlb", "none")]["value_captured"] == pytest.approx(0.25)  # 1 of oracle / none's 4 s
+    assert table[("qlb", "none")]["value_oracle"] == "oracle / none"
+    assert math.isnan(table[("none", "cvm")]["value_captured"])  # none / oracle is not faster
+    assert table[("qlb", "cvm")]["value_captured"] == pytest.approx(0.5)  # 1 of oracle / oracle's 2 s
+
+
 def test_value_table_refuses_unpaired_rows() -> None:
     recs = [_record("none", "none", 0, 10.0), _record("none", "none", 1, 11.0)]
     recs += [_record("qlb", "none", 0, 9.0), _record("qlb", "none", 2, 9.0)]
