@@ -117,7 +117,8 @@ class EpisodeMetrics:
       `kerb_margin` of the crossing. The obligation is violated if the ego footprint is in the CA while it
       is open; it ends compliant when the pedestrian, having entered the ego's half, is outside it again
       (crossed or turned back), or when the ego has stood still within `offer_distance` of the stop line
-      for `offer_timeout` while the pedestrian kept waiting (declined offer); it is dropped (not counted)
+      (or past it, before the crossing) for `offer_timeout` while the pedestrian kept waiting (declined
+      offer); it is dropped (not counted)
       if the pedestrian leaves the kerb without crossing (state neither `WAITING` nor `CROSSING`, centre
       off the road) before entering the ego's half. Only pedestrians who intend to cross
       (`GroundTruth.intends_to_cross`) open obligations, as the law's duty is to them. Obligations

@@ -55,7 +55,8 @@ class MetricsConfig:
     offer_stop_speed: float = 0.1
     """Ego speed (m/s) regarded as stopped when offering the way."""
     offer_distance: float = 20.0
-    """The ego offers the way only when stopped within this distance (m) before the stop line."""
+    """The ego offers the way only when stopped within this distance (m) before the stop line, or past the
+    line but before the crossing (a car that crept over the line and stands is still giving way)."""
     offer_timeout: float = 3.0
     """Stopped time (s) after which a still-waiting pedestrian is taken to have declined the offer; the
     obligation then ends as compliant (the car may go)."""

@@ -144,8 +144,9 @@ class YieldTracker:
         dropped = open_ & ~entered_half & gave_up
         status = np.where(cleared, COMPLIANT, np.where(dropped, WAIVED, status))
 
-        # Declined offers: the ego stands just before the stop line while the pedestrian keeps waiting.
-        if speed <= cfg.offer_stop_speed and 0.0 <= dist <= cfg.offer_distance:
+        # Declined offers: the ego stands before the crossing (at most `offer_distance` before the stop line,
+        # or between the line and the crossing) while the pedestrian keeps waiting.
+        if speed <= cfg.offer_stop_speed and front <= ca.x_min and dist <= cfg.offer_distance:
             offering = (status == OPEN) & waiting
             if np.count_nonzero(offering):
                 r_off = rows[offering]

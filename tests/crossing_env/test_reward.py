@@ -67,9 +67,14 @@ def test_a_yield_violation_lowers_the_return():
 def test_yielding_ranks_above_constant_speed_and_always_cautious(scenario):
     """Over paired seeds, the law-abiding, efficient policy earns the highest mean return."""
     env = gym.make(ENV_ID, scenario=scenario)
-    means = {}
+    means, passed = {}, {}
     for name in ("yielding", "constant_speed", "always_cautious"):
-        rets = [_episode(env, name, episode_seed(2024, scenario, ep))[0] for ep in range(SEEDS)]
-        means[name] = float(np.mean(rets))
+        runs = [_episode(env, name, episode_seed(2024, scenario, ep)) for ep in range(SEEDS)]
+        means[name] = float(np.mean([ret for ret, _, _ in runs]))
+        passed[name] = sum(m.result().passed_crossing for _, _, m in runs)
     assert means["yielding"] > means["constant_speed"], means
-    assert means["yielding"] > means["always_cautious"], means
+    if passed["yielding"] or passed["always_cautious"]:
+        assert means["yielding"] > means["always_cautious"], means
+    else:
+        # busy_zebra: a stream of crossers holds both at the line for the whole episode; they tie.
+        assert means["yielding"] == pytest.approx(means["always_cautious"], abs=0.05), means

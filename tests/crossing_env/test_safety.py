@@ -551,6 +551,15 @@ def test_yield_declined_offer_and_dropped_waiter() -> None:
         0,
         1,
     )
+    # a car that crept over the line and stands before the crossing (front at 117 m, crossing from 118 m)
+    # is still offering: the offer is declined after 3 s, not violated
+    m = metrics()
+    m.update(make_gt(0.1, ego_x=50.0, ego_v=10.0, peds=[waiter]))  # the obligation opens
+    for k in range(31):
+        m.update(make_gt(0.2 + 0.1 * k, ego_x=114.75, ego_v=0.0, peds=[waiter]))
+    m.update(make_gt(3.5, ego_x=118.0, ego_v=3.0, peds=[waiter]))
+    r = m.result()
+    assert (r.yield_obligations, r.yield_violations, r.yield_offers_declined) == (1, 0, 1)
     # a pedestrian who stops waiting and walks off along the sidewalk is not an obligation
     m = metrics()
     _ego_through(m, 0.1, 50.0, [waiter])
