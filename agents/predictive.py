@@ -58,8 +58,7 @@ class PredictiveYielding(YieldingPolicy):
     def _visible_duty(self, view: View, kerb_gap: np.ndarray) -> np.ndarray:
         """(B, K) pedestrians whose wish to cross the car can see: on the road, or stepping towards it."""
         cfg = self.config
-        towards = np.where(view.py > 0.5 * (cfg.road_right + cfg.road_left), -view.vy, view.vy)
-        stepping = (towards > cfg.stepping_speed) & (kerb_gap <= cfg.kerb_distance)
+        stepping = (self._towards_road(view) > cfg.stepping_speed) & (kerb_gap <= cfg.kerb_distance)
         return view.on_road | view.on_crossing | stepping
 
     def _likely_to_cross(self, view: View, kerb_gap: np.ndarray) -> np.ndarray:

@@ -137,6 +137,11 @@ class YieldingPolicy:
         front = self.config.ego_length / 2
         return front + view.to_stop[:, None] + self.config.stop_line_offset, -view.past[:, None] - front
 
+    def _towards_road(self, view: View) -> np.ndarray:
+        """(B, K) each pedestrian's speed towards the carriageway (m/s; negative: away from it)."""
+        cfg = self.config
+        return np.where(view.py > 0.5 * (cfg.road_right + cfg.road_left), -view.vy, view.vy)
+
     def _at_crossing(self, view: View) -> np.ndarray:
         """(B, K) pedestrians within `kerb_margin` of the crossing along the road."""
         near, far = self._crossing_span(view)
@@ -169,7 +174,7 @@ class YieldingPolicy:
         toward = (centre - view.py) * view.vy > 0.0
         on_xing = view.on_crossing & (in_half | toward)
         kerb_gap = np.minimum(np.abs(view.py - cfg.road_right), np.abs(view.py - cfg.road_left))
-        towards_road = np.where(view.py > 0.5 * (cfg.road_right + cfg.road_left), -view.vy, view.vy)
+        towards_road = self._towards_road(view)
         lingering = view.present & (towards_road > -cfg.leaving_speed) & (kerb_gap <= cfg.kerb_distance)
         waiting = (view.waiting | lingering) & ~view.on_road
         likely = self._likely_to_cross(view, kerb_gap) if use_pred and view.intention is not None else None

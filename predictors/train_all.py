@@ -109,21 +109,13 @@ def main(argv: list[str] | None = None) -> int:
         lr_plateau=a.lr_plateau,
         threads=1,
     )
-    if seeds:
-        runs = {
-            f"seed{k}_{m}_{s}": replace(
-                base, model=m, scene=s, seed=k, out=str(out_dir / f"seed{k}" / f"{m}_{s}.pt"), force=a.force
-            )
-            for k in seeds
-            for s in scenes
-            for m in models
-        }
-    else:
-        runs = {
-            f"{m}_{s}": replace(base, model=m, scene=s, out=str(out_dir / f"{m}_{s}.pt"), force=a.force)
-            for s in scenes
-            for m in models
-        }
+    runs: dict[str, TrainConfig] = {}
+    for k in seeds or [None]:  # no --seeds: one run each, base seed, straight into --out-dir
+        folder, prefix = (out_dir, "") if k is None else (out_dir / f"seed{k}", f"seed{k}_")
+        for s in scenes:
+            for m in models:
+                cfg = replace(base, model=m, scene=s, out=str(folder / f"{m}_{s}.pt"), force=a.force)
+                runs[f"{prefix}{m}_{s}"] = cfg if k is None else replace(cfg, seed=k)
     failed = 0
     context = multiprocessing.get_context("spawn")  # no forked torch/numba thread state in the workers
     pool = ProcessPoolExecutor(max_workers=a.jobs, mp_context=context)

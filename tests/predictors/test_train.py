@@ -56,24 +56,18 @@ def test_train_cli_bad_input_exits_nonzero(
     assert "hotel" in capsys.readouterr().err
 
 
+def _train_all_args(data_root: Path, out: Path, logs: Path) -> list[str]:
+    """One-epoch `predictors.train_all` arguments on the tiny data root."""
+    return ["--data", str(data_root), "--out-dir", str(out), "--log-dir", str(logs), "--epochs", "1"]
+
+
 def test_train_all_runs_in_parallel_and_reports_a_failed_run(
     data_root: Path, tmp_path: Path, capsys: pytest.CaptureFixture
 ) -> None:
     from predictors import train_all
 
     out, logs = tmp_path / "w", tmp_path / "logs"
-    args = [
-        "--data",
-        str(data_root),
-        "--out-dir",
-        str(out),
-        "--log-dir",
-        str(logs),
-        "--epochs",
-        "1",
-        "--jobs",
-        "2",
-    ]
+    args = [*_train_all_args(data_root, out, logs), "--jobs", "2"]
     # hotel has no data in this root: that run fails, the other two still finish
     assert train_all.main([*args, "--models", "s-cgru,lstm", "--scenes", "eth,hotel"]) == 1
     printed = capsys.readouterr().out
@@ -233,16 +227,7 @@ def test_train_all_repeats_runs_per_seed(data_root: Path, tmp_path: Path) -> Non
     from predictors import train_all
 
     out = tmp_path / "w"
-    args = [
-        "--data",
-        str(data_root),
-        "--out-dir",
-        str(out),
-        "--log-dir",
-        str(tmp_path / "logs"),
-        "--epochs",
-        "1",
-    ]
+    args = _train_all_args(data_root, out, tmp_path / "logs")
     assert train_all.main([*args, "--models", "lstm", "--scenes", "eth", "--seeds", "3,4"]) == 0
     assert [checkpoint_meta(out / f"seed{k}" / "lstm_eth.pt")["seed"] for k in (3, 4)] == [3, 4]
     assert train_all.main([*args, "--seeds", "one"]) == 2
