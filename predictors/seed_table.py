@@ -1,11 +1,13 @@
 """Mean ± sd over training seeds of `predictors.evaluate` results, and the verdict against a baseline.
 
-Run ``python -m predictors.seed_table SEED0.json SEED1.json ... [--baseline dcvm] [--model s-cgru]``, where
-each file is ``python -m predictors.evaluate --save`` output for checkpoints trained with one seed (the
-same protocol and sample seed in every file). The table gives, per scene, the model's K = 1 and best-of-20
-(per pedestrian) ADE/FDE and energy score as mean ± sample sd over the files, the baseline's values (the
-mean over the files, as it has no training seed), and whether the model beats the baseline by more than
-the seed sd on K = 1 ADE and on best-of-20 ADE, as issue #15's target asks.
+Run ``python -m predictors.seed_table SEED0.json SEED1.json ... [--models s-cgru,s-gru] [--baseline dcvm]``,
+where each file is ``python -m predictors.evaluate --save`` output for checkpoints trained with one seed (the
+same protocol and sample seed in every file). It prints, first, one summary row per model (the baselines
+too) with the ETH/UCY AVG and SDD as mean ± sample sd over the files — the AVG is taken within each file, so
+its sd is the seed-to-seed spread of the average; then, per model, a per-scene table of K = 1 and
+best-of-20 (per pedestrian) ADE/FDE and energy score against the baseline (the baseline's mean over the
+files, as it has no training seed), and whether the model beats the baseline by more than the seed sd on
+K = 1 ADE and on best-of-20 ADE on each ETH/UCY scene, as issue #15's target asks.
 """
 
 from __future__ import annotations
@@ -26,6 +28,12 @@ ROWS: tuple[tuple[str, int, str], ...] = (
     ("ped20", 1, "best-of-20 FDE"),
     ("es", 0, "energy score"),
 )
+SUMMARY: tuple[tuple[str, str], ...] = (
+    ("k1", "K = 1"),
+    ("ped20", "best-of-20 per ped."),
+    ("scene20", "best-of-20 per scene"),
+    ("es", "energy score"),
+)
 
 
 def _values(runs: list[dict], model: str, scene: str, metric: str, i: int) -> np.ndarray:
@@ -37,12 +45,56 @@ def _values(runs: list[dict], model: str, scene: str, metric: str, i: int) -> np
     return np.asarray(vals)
 
 
+def _avg_values(runs: list[dict], model: str, metric: str, i: int) -> np.ndarray:
+    """Per file, the mean over the five ETH/UCY scenes (files missing a scene are left out)."""
+    vals = []
+    for r in runs:
+        entries = [r["results"].get(model, {}).get(s, {}) for s in SCENES]
+        if all(metric in e for e in entries):
+            vals.append(float(np.mean([e[metric][i] for e in entries])))
+    return np.asarray(vals)
+
+
+def _mean_sd(v: np.ndarray, digits: int = 3) -> str:
+    if not v.size:
+        return "–"
+    if v.size == 1:
+        return f"{v[0]:.{digits}f} (1)"
+    if np.all(v == v[0]):  # a baseline: no training seed, the same value in every file
+        return f"{v[0]:.{digits}f}"
+    return f"{v.mean():.{digits}f} ± {v.std(ddof=1):.{digits}f}"
+
+
+def _pair(runs: list[dict], model: str, scene: str, metric: str) -> str:
+    get = (
+        (lambda i: _avg_values(runs, model, metric, i))
+        if scene == "avg"
+        else (lambda i: _values(runs, model, scene, metric, i))
+    )
+    if metric == "es":
+        return _mean_sd(get(0))
+    ade, fde = get(0), get(1)
+    return "–" if not ade.size else f"{_mean_sd(ade)} / {_mean_sd(fde)}"
+
+
+def summary(runs: list[dict], models: list[str]) -> str:
+    """Markdown: one row per model, ETH/UCY AVG and SDD, mean ± sd over the files (plain: no spread)."""
+    avg = " | ".join(f"AVG {label}" for _, label in SUMMARY)
+    head = f"| model | {avg} | SDD K = 1 | SDD best-of-20 |"
+    lines = [head, "|" + "---|" * (len(SUMMARY) + 3)]
+    for m in models:
+        cells = [_pair(runs, m, "avg", metric) for metric, _ in SUMMARY]
+        cells += [_pair(runs, m, "sdd", "k1"), _pair(runs, m, "sdd", "ped20")]
+        lines.append(f"| {m} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def table(runs: list[dict], model: str, baseline: str) -> tuple[str, int]:
     """Markdown table and the number of ETH/UCY scenes where the model beats the baseline as asked."""
     head = "| scene | metric | " + f"{model} (mean ± sd, n seeds) | {baseline} | difference |"
     lines = [head, "|---|---|---|---|---|"]
     wins = 0
-    for scene in SCENES:
+    for scene in (*SCENES, "sdd"):
         beats = []
         for metric, i, label in ROWS:
             m = _values(runs, model, scene, metric, i)
@@ -56,7 +108,7 @@ def table(runs: list[dict], model: str, baseline: str) -> tuple[str, int]:
             lines.append(
                 f"| {scene} | {label} | {m.mean():.3f} ± {sd:.3f} ({m.size}) | {b.mean():.3f} | {diff:+.3f} |"
             )
-        if len(beats) == 2 and all(beats):
+        if scene in SCENES and len(beats) == 2 and all(beats):
             wins += 1
     return "\n".join(lines), wins
 
@@ -65,8 +117,9 @@ def main(argv: list[str] | None = None) -> int:
     """Console entry point."""
     p = argparse.ArgumentParser(prog="python -m predictors.seed_table", description=__doc__.splitlines()[0])
     p.add_argument("files", nargs="+", help="predictors.evaluate --save JSON, one per training seed")
-    p.add_argument("--model", default="s-cgru")
+    p.add_argument("--models", default="s-cgru", help="comma list of the trained models to tabulate")
     p.add_argument("--baseline", default="dcvm")
+    p.add_argument("--summary-only", action="store_true", help="print only the one-row-per-model summary")
     a = p.parse_args(argv)
     runs = []
     for f in a.files:
@@ -75,12 +128,24 @@ def main(argv: list[str] | None = None) -> int:
         except (OSError, json.JSONDecodeError) as exc:
             print(f"predictors.seed_table: error: {f}: {exc}", file=sys.stderr)
             return 2
-    text, wins = table(runs, a.model, a.baseline)
-    print(text)
-    print(
-        f"\n{a.model} beats {a.baseline} by more than the seed sd at K=1 ADE and best-of-20 ADE on "
-        f"{wins} of {len(SCENES)} ETH/UCY scenes (target: >= 4)."
-    )
+    models = [m for m in a.models.split(",") if m]
+    present = {m for r in runs for m in r.get("results", {})}
+    missing = [m for m in (*models, a.baseline) if m not in present]
+    if missing:
+        err = f"predictors.seed_table: error: --models/--baseline: {missing} not in any file"
+        print(err, file=sys.stderr)
+        return 2
+    baselines = [b for b in ("cvm", "cvm-s", "kalman", "dcvm") if b in present and b not in models]
+    print(summary(runs, [*baselines, *models]))
+    if a.summary_only:
+        return 0
+    for model in models:
+        text, wins = table(runs, model, a.baseline)
+        print(f"\n{text}")
+        print(
+            f"\n{model} beats {a.baseline} by more than the seed sd at K=1 ADE and best-of-20 ADE on "
+            f"{wins} of {len(SCENES)} ETH/UCY scenes (target: >= 4)."
+        )
     return 0
 
 

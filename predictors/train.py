@@ -94,6 +94,8 @@ class TrainConfig:
     lr_plateau: int = 0
     """Halve the learning rate after this many epochs without a better val ADE (0 = constant rate):
     the val ADE of a constant 5e-4 swings by ±0.05 m from epoch to epoch, so it never settles."""
+    rotate: int = 1
+    """1: rotate each training batch by a random angle (augmentation the protocol allows); 0: no rotation."""
 
 
 def _union_split(root: Path, split: str) -> Windows:
@@ -241,6 +243,8 @@ def train(cfg: TrainConfig) -> Path:
         raise ValueError(f"--epochs must be >= 1, got {cfg.epochs}")
     if not 0.0 < cfg.train_fraction <= 1.0:
         raise ValueError(f"--train-fraction must be in (0, 1], got {cfg.train_fraction}")
+    if cfg.rotate not in (0, 1):
+        raise ValueError(f"--rotate must be 0 or 1, got {cfg.rotate}")
     torch.set_num_threads(cfg.threads)
     torch.manual_seed(cfg.seed)
     rng = np.random.default_rng(cfg.seed)
@@ -267,7 +271,7 @@ def train(cfg: TrainConfig) -> Path:
     for epoch in range(cfg.epochs):
         model.train()
         sub = train_w.subset(np.sort(rng.choice(train_w.num_windows, n_take, replace=False)))
-        batches = list(iterate_batches(sub, cfg.batch_peds, rng=rng, rotate=True))
+        batches = list(iterate_batches(sub, cfg.batch_peds, rng=rng, rotate=bool(cfg.rotate)))
         total = 0.0
         bar = tqdm(batches, desc=f"{cfg.model} {cfg.scene} epoch {epoch + 1}/{cfg.epochs}", leave=False)
         for b in bar:
@@ -301,6 +305,7 @@ def train(cfg: TrainConfig) -> Path:
                 "teacher_forcing": cfg.teacher_forcing,
                 "nll_beta": cfg.nll_beta,
                 "cv_residual": cfg.cv_residual,
+                "rotate": cfg.rotate,
                 "patience": cfg.patience,
                 "lr_plateau": cfg.lr_plateau,
             }

@@ -74,6 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--train-fraction", type=float, default=TrainConfig.train_fraction, help="share of windows per epoch"
     )
+    p.add_argument("--rotate", type=int, default=TrainConfig.rotate, help="1: random-rotation augmentation")
     p.add_argument("--patience", type=int, default=TrainConfig.patience, help="early-stopping patience")
     p.add_argument(
         "--lr-plateau", type=int, default=TrainConfig.lr_plateau, help="halve lr after N flat epochs"
@@ -107,6 +108,7 @@ def main(argv: list[str] | None = None) -> int:
         train_fraction=a.train_fraction,
         patience=a.patience,
         lr_plateau=a.lr_plateau,
+        rotate=a.rotate,
         threads=1,
     )
     runs: dict[str, TrainConfig] = {}

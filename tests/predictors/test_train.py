@@ -56,6 +56,23 @@ def test_train_cli_bad_input_exits_nonzero(
     assert "hotel" in capsys.readouterr().err
 
 
+def test_train_rotation_augmentation_can_be_switched_off(
+    data_root: Path, tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    base = ["--model", "lstm", "--scene", "eth", "--epochs", "1", "--data", str(data_root)]
+    assert main([*base, "--out", str(tmp_path / "r1.pt")]) == 0
+    assert main([*base, "--rotate", "0", "--out", str(tmp_path / "r0.pt")]) == 0
+    assert checkpoint_meta(tmp_path / "r1.pt")["rotate"] == 1
+    assert checkpoint_meta(tmp_path / "r0.pt")["rotate"] == 0
+    w1 = load_model(tmp_path / "r1.pt").state_dict()
+    w0 = load_model(tmp_path / "r0.pt").state_dict()
+    assert any(not torch.equal(w1[k], w0[k]) for k in w1)  # same seed, different batches seen
+    capsys.readouterr()
+    assert main([*base, "--rotate", "2", "--out", str(tmp_path / "bad.pt")]) == 2
+    assert "--rotate must be 0 or 1, got 2" in capsys.readouterr().err
+    assert not (tmp_path / "bad.pt").exists()
+
+
 def _train_all_args(data_root: Path, out: Path, logs: Path) -> list[str]:
     """One-epoch `predictors.train_all` arguments on the tiny data root."""
     return ["--data", str(data_root), "--out-dir", str(out), "--log-dir", str(logs), "--epochs", "1"]
@@ -208,7 +225,7 @@ def test_train_stops_early_without_val_progress(data_root: Path, tmp_path: Path)
 
 
 def test_seed_table_reports_mean_sd_and_the_verdict() -> None:
-    from predictors.seed_table import table
+    from predictors.seed_table import summary, table
 
     def run(model_ade: float) -> dict:
         res = {"s-cgru": {}, "dcvm": {}}
@@ -221,6 +238,21 @@ def test_seed_table_reports_mean_sd_and_the_verdict() -> None:
     assert "0.420 ± 0.020 (3)" in text and wins == 5  # 0.42 vs 0.50 at K=1, 0.21 vs 0.30 at best-of-20
     _, wins = table([run(0.30), run(0.70)], "s-cgru", "dcvm")
     assert wins == 0  # mean 0.50: no better at K=1, and the seed sd (0.28) swamps any difference
+    rows = summary([run(0.40), run(0.42), run(0.44)], ["dcvm", "s-cgru"]).splitlines()
+    assert rows[2].startswith("| dcvm | 0.500 / 1.000 | 0.300 / 0.500 |")  # no seed: no sd
+    assert rows[3].startswith("| s-cgru | 0.420 ± 0.020 / 1.000 | 0.210 ± 0.010 / 0.500 |")
+
+
+def test_seed_table_cli_names_a_model_missing_from_the_files(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    from predictors import seed_table
+
+    f = tmp_path / "seed0.json"
+    f.write_text(json.dumps({"results": {"dcvm": {"eth": {"k1": [0.5, 1.0]}}}}))
+    assert seed_table.main([str(f), "--models", "s-lstm"]) == 2
+    assert "['s-lstm'] not in any file" in capsys.readouterr().err
+    assert seed_table.main([str(tmp_path / "absent.json")]) == 2
 
 
 def test_train_all_repeats_runs_per_seed(data_root: Path, tmp_path: Path) -> None:
