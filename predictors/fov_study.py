@@ -6,7 +6,10 @@ result does not depend on the machine's load), model selection on the val split 
 and the table reports the mean val ADE over seeds with a Student-t 95 % interval (``scipy.stats``). The
 test split is never read.
 
-``python -m predictors.fov_study --scenes eth,hotel --seeds 3 --epochs 4 --save runs/fov.json``
+``python -m predictors.fov_study --scenes eth,hotel --seeds 3 --epochs 4 --save runs/fov.json`` (the short
+budget: 4 epochs of 25 % of the windows); ``--epochs 40 --train-fraction 1 --patience 6 --lr-plateau 3``
+trains every run to convergence as ``predictors.train_all`` does. Each row carries CVM's ADE on the same
+val split, the bar a trained model has to clear.
 """
 
 from __future__ import annotations
@@ -20,7 +23,8 @@ import numpy as np
 from scipy import stats
 
 from crossing_common.files import write_text_atomic
-from predictors.data import SCENES, default_data_root
+from predictors.baselines import cvm
+from predictors.data import SCENES, default_data_root, load_split, to_batch
 
 DEFAULT_FOVS: tuple[float, ...] = (60.0, 85.0, 120.0, 180.0, 360.0)
 SEED_PAPER_FOV: dict[str, float] = {"eth": 85.0, "hotel": 75.0, "univ": 135.0, "sdd": 120.0}
@@ -36,19 +40,30 @@ def mean_ci(values: list[float], level: float = 0.95) -> tuple[float, float]:
     return float(x.mean()), half
 
 
-def run_one(
-    scene: str, fov: float, seed: int, epochs: int, train_fraction: float, data: Path, out: Path
-) -> dict:
+STUDY_SCENES: tuple[str, ...] = (*SCENES, "sdd")
+BUDGET_KEYS: tuple[str, ...] = ("epochs", "train_fraction", "patience", "lr_plateau")
+"""What a resumed study must share with the saved one (older files lack the last two: 0, 0)."""
+
+
+def cvm_val_ade(scene: str, data: Path) -> float:
+    """Constant velocity's most-likely ADE on the scene's val split: the bar every run has to clear."""
+    b = to_batch(load_split(data, scene, "val"))
+    return float((cvm(b.obs) - b.fut).norm(dim=-1).mean())
+
+
+def run_one(scene: str, fov: float, seed: int, budget: dict[str, float], data: Path, out: Path) -> dict:
     """Train one S-CGRU with this sector and seed; return its selected val ADE/FDE and epochs."""
     from predictors.train import TrainConfig, checkpoint_meta, train
 
     cfg = TrainConfig(
         model="s-cgru",
         scene=scene,
-        epochs=epochs,
+        epochs=int(budget["epochs"]),
         seed=seed,
         max_minutes=0.0,
-        train_fraction=train_fraction,
+        train_fraction=float(budget["train_fraction"]),
+        patience=int(budget.get("patience", 0)),
+        lr_plateau=int(budget.get("lr_plateau", 0)),
         fov_deg=fov,
         data=str(data),
         out=str(out),
@@ -64,15 +79,16 @@ def run_one(
 
 
 def to_markdown(res: dict[str, object]) -> str:
-    """One row per scene: mean val ADE ± 95 % half-width per angle, the best angle, the seed's angle."""
+    """One row per scene: mean val ADE ± 95 % half-width per angle, the best angle, the seed's angle, CVM."""
     runs: dict[str, dict[str, list[dict]]] = res["runs"]  # type: ignore[assignment]
+    cvm_ade: dict[str, float] = res.get("cvm_val_ade", {})  # type: ignore[assignment]
     listed = {float(f) for f in res["fovs"]}  # type: ignore[union-attr]
     fovs = sorted(listed | {float(f) for per_fov in runs.values() for f in per_fov})
     lines = [
         "| Scene | "
         + " | ".join(f"{f:.0f}°" for f in fovs)
-        + " | best (mean) | all CIs overlap best? | seed Table 3 |",
-        "|---" * (len(fovs) + 4) + "|",
+        + " | best (mean) | all CIs overlap best? | seed Table 3 | CVM (val) |",
+        "|---" * (len(fovs) + 5) + "|",
     ]
     for scene, per_fov in runs.items():
         cells, means = [], {}
@@ -95,7 +111,9 @@ def to_markdown(res: dict[str, object]) -> str:
             best_cell = overlap_cell = "–"
         seed = SEED_PAPER_FOV.get(scene)
         seed_cell = f"{seed:.0f}°" if seed else "–"
-        lines.append(f"| {scene} | " + " | ".join(cells) + f" | {best_cell} | {overlap_cell} | {seed_cell} |")
+        cvm_cell = f"{cvm_ade[scene]:.3f}" if scene in cvm_ade else "–"
+        tail = f" | {best_cell} | {overlap_cell} | {seed_cell} | {cvm_cell} |"
+        lines.append(f"| {scene} | " + " | ".join(cells) + tail)
     return "\n".join(lines) + "\n"
 
 
@@ -107,6 +125,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seeds", type=int, default=3)
     p.add_argument("--epochs", type=int, default=4, help="epochs of --train-fraction of the train windows")
     p.add_argument("--train-fraction", type=float, default=0.25)
+    p.add_argument("--patience", type=int, default=0, help="early stopping on val ADE (0: every epoch)")
+    p.add_argument("--lr-plateau", type=int, default=0, help="halve the lr after N flat epochs (0: never)")
     p.add_argument("--data", default="")
     p.add_argument("--save", default="runs/fov_study.json")
     p.add_argument("--report", action="store_true", help="print the table of --save without training")
@@ -119,36 +139,35 @@ def main(argv: list[str] | None = None) -> int:
         scenes = [s for s in a.scenes.split(",") if s]
         fovs = [float(f) for f in a.fovs.split(",") if f]
         for s in scenes:
-            if s not in SCENES:
-                raise ValueError(f"--scenes: unknown scene {s!r}; choose from {SCENES}")
+            if s not in STUDY_SCENES:
+                raise ValueError(f"--scenes: unknown scene {s!r}; choose from {STUDY_SCENES}")
         for f in fovs:
             if not 0.0 < f <= 360.0:
                 raise ValueError(f"--fovs: angle {f} outside (0, 360]")
         if a.seeds < 1 or a.epochs < 1:
             raise ValueError(f"--seeds and --epochs must be >= 1, got {a.seeds}, {a.epochs}")
+        if a.patience < 0 or a.lr_plateau < 0:
+            raise ValueError(f"--patience and --lr-plateau must be >= 0, got {a.patience}, {a.lr_plateau}")
     except (ValueError, FileNotFoundError) as exc:
         print(f"predictors.fov_study: error: {exc}", file=sys.stderr)
         return 2
     data = Path(a.data) if a.data else default_data_root()
-    res: dict[str, object] = {
-        "epochs": a.epochs,
-        "train_fraction": a.train_fraction,
-        "fovs": fovs,
-        "seeds": a.seeds,
-        "runs": {},
-    }
+    budget = {"epochs": a.epochs, "train_fraction": a.train_fraction}
+    budget |= {"patience": a.patience, "lr_plateau": a.lr_plateau}
+    res: dict[str, object] = {**budget, "fovs": fovs, "seeds": a.seeds, "runs": {}, "cvm_val_ade": {}}
     if save.is_file():  # resume: keep the runs of an earlier study with the same budget
         old = json.loads(save.read_text())
-        if (old["epochs"], old["train_fraction"]) == (a.epochs, a.train_fraction):
+        if all(old.get(k, 0) == budget[k] for k in BUDGET_KEYS):
             res["runs"] = {s: v for s, v in old["runs"].items() if s in scenes}
     runs: dict[str, dict[str, list[dict]]] = res["runs"]  # type: ignore[assignment]
+    res["cvm_val_ade"] = {s: cvm_val_ade(s, data) for s in scenes}
     ckpt = save.with_suffix(".pt")
     for seed in range(a.seeds):  # seeds outermost: an interrupted study still has every angle
         for scene in scenes:
             for fov in fovs:
                 if any(r["seed"] == seed for r in runs.get(scene, {}).get(str(fov), [])):
                     continue
-                r = run_one(scene, fov, seed, a.epochs, a.train_fraction, data, ckpt)
+                r = run_one(scene, fov, seed, budget, data, ckpt)
                 runs.setdefault(scene, {}).setdefault(str(fov), []).append({"seed": seed, **r})
                 print(f"fov {scene} {fov:g} seed {seed}: {r}", file=sys.stderr, flush=True)
                 write_text_atomic(save, json.dumps(res, indent=1))

@@ -80,10 +80,12 @@ def test_fov_table_flags_distinguishable_optima_and_refuses_bad_input(capsys: py
             "hotel": {"60.0": runs(0.40, 0.50, 0.45), "360.0": runs(0.42, 0.52, 0.47)},
             "univ": {"60.0": runs(0.4)},
         },
+        "cvm_val_ade": {"eth": 0.447},
     }
     rows = {line.split(" | ")[0]: line for line in fov_study.to_markdown(res).splitlines()}
     assert "| 60° | no | 85° |" in rows["| eth"]  # 0.41 ± 0.025 vs 0.51 ± 0.025: distinguishable
     assert "| 60° | yes | 75° |" in rows["| hotel"]  # spread of 0.05 between seeds: not
     assert "n/a (n < 2)" in rows["| univ"]
+    assert rows["| eth"].endswith("| 0.447 |") and rows["| univ"].endswith("| – |")  # CVM's val ADE
     assert fov_study.main(["--scenes", "mars"]) == 2
     assert "mars" in capsys.readouterr().err
