@@ -148,19 +148,27 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError(f"--seeds and --epochs must be >= 1, got {a.seeds}, {a.epochs}")
         if a.patience < 0 or a.lr_plateau < 0:
             raise ValueError(f"--patience and --lr-plateau must be >= 0, got {a.patience}, {a.lr_plateau}")
-    except (ValueError, FileNotFoundError) as exc:
+        budget = {"epochs": a.epochs, "train_fraction": a.train_fraction}
+        budget |= {"patience": a.patience, "lr_plateau": a.lr_plateau}
+        res: dict[str, object] = {**budget, "fovs": fovs, "seeds": a.seeds, "runs": {}, "cvm_val_ade": {}}
+        if save.is_file():  # resume: add to an earlier study with the same budget, every scene kept
+            old = json.loads(save.read_text())
+            for k in BUDGET_KEYS:
+                if old.get(k, 0) != budget[k]:
+                    raise ValueError(
+                        f"{save}: field {k!r} is {old.get(k, 0)!r} there but {budget[k]!r} here; a study "
+                        "keeps one budget, so choose another --save"
+                    )
+            res["runs"] = old["runs"]
+            res["cvm_val_ade"] = old.get("cvm_val_ade", {})
+            res["fovs"] = sorted({*map(float, old.get("fovs", [])), *fovs})
+    except (ValueError, FileNotFoundError, json.JSONDecodeError) as exc:
         print(f"predictors.fov_study: error: {exc}", file=sys.stderr)
         return 2
     data = Path(a.data) if a.data else default_data_root()
-    budget = {"epochs": a.epochs, "train_fraction": a.train_fraction}
-    budget |= {"patience": a.patience, "lr_plateau": a.lr_plateau}
-    res: dict[str, object] = {**budget, "fovs": fovs, "seeds": a.seeds, "runs": {}, "cvm_val_ade": {}}
-    if save.is_file():  # resume: keep the runs of an earlier study with the same budget
-        old = json.loads(save.read_text())
-        if all(old.get(k, 0) == budget[k] for k in BUDGET_KEYS):
-            res["runs"] = {s: v for s, v in old["runs"].items() if s in scenes}
     runs: dict[str, dict[str, list[dict]]] = res["runs"]  # type: ignore[assignment]
-    res["cvm_val_ade"] = {s: cvm_val_ade(s, data) for s in scenes}
+    res["cvm_val_ade"] |= {s: cvm_val_ade(s, data) for s in scenes}  # type: ignore[operator]
+    write_text_atomic(save, json.dumps(res, indent=1))  # a resumed study gains the CVM column at once
     ckpt = save.with_suffix(".pt")
     for seed in range(a.seeds):  # seeds outermost: an interrupted study still has every angle
         for scene in scenes:

@@ -1,6 +1,8 @@
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import pytest
 import torch
@@ -89,3 +91,38 @@ def test_fov_table_flags_distinguishable_optima_and_refuses_bad_input(capsys: py
     assert rows["| eth"].endswith("| 0.447 |") and rows["| univ"].endswith("| – |")  # CVM's val ADE
     assert fov_study.main(["--scenes", "mars"]) == 2
     assert "mars" in capsys.readouterr().err
+
+
+def test_fov_study_resume_keeps_other_scenes_and_refuses_another_budget(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    from predictors import fov_study
+
+    val = tmp_path / "data" / "eth_ucy" / "eth" / "val"
+    val.mkdir(parents=True)
+    rows = [f"{t * 10}\t{p}.0\t{0.4 * t + p:.3f}\t{p:.3f}" for t in range(20) for p in (1, 2)]
+    (val / "a.txt").write_text("\n".join(rows) + "\n")
+    save = tmp_path / "fov.json"
+    run = {"seed": 0, "val_ade": 0.5, "val_fde": 1.0, "best_epoch": 1, "wall_s": 1.0}
+    study = {"epochs": 4, "train_fraction": 0.25, "fovs": [60.0], "seeds": 1}
+    study["runs"] = {"eth": {"60.0": [run]}, "hotel": {"60.0": [run]}}
+    save.write_text(json.dumps(study))
+    before = save.read_text()
+    args = [
+        "--scenes",
+        "eth",
+        "--fovs",
+        "60",
+        "--seeds",
+        "1",
+        "--data",
+        str(tmp_path / "data"),
+        "--save",
+        str(save),
+    ]
+    assert fov_study.main([*args, "--epochs", "5"]) == 2
+    assert "field 'epochs' is 4 there but 5 here" in capsys.readouterr().err
+    assert save.read_text() == before  # nothing lost
+    assert fov_study.main([*args, "--epochs", "4"]) == 0  # every run already there: nothing trains
+    saved = json.loads(save.read_text())
+    assert set(saved["runs"]) == {"eth", "hotel"} and saved["cvm_val_ade"]["eth"] < 1e-5  # CV is exact here
