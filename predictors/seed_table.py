@@ -113,14 +113,55 @@ def table(runs: list[dict], model: str, baseline: str) -> tuple[str, int]:
     return "\n".join(lines), wins
 
 
+def budget_table(folder: Path) -> str:
+    """Markdown: per model, the training budget its checkpoints in ``folder/seed*/`` record.
+
+    A run "stopped early" when its last epoch came ``patience`` epochs after its best; otherwise it was
+    stopped by the clock (or ran every epoch), and may have had more to give.
+    """
+    from predictors.train import checkpoint_meta
+
+    per_model: dict[str, list[dict]] = {}
+    for ckpt in sorted(folder.glob("seed*/*.pt")):
+        meta = checkpoint_meta(ckpt)
+        if "epochs_run" in meta:  # a run still training has saved only its best epoch so far
+            per_model.setdefault(ckpt.stem.split("_")[0], []).append(meta)
+    lines = [
+        "| model | runs | stopped early | epochs run | best epoch | wall s per run | wall s in all |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for model, metas in per_model.items():
+        early = sum(m["epochs_run"] - m["best_epoch"] >= max(1, m.get("patience", 0)) for m in metas)
+        epochs = [m["epochs_run"] for m in metas]
+        best = [m["best_epoch"] for m in metas]
+        wall = [float(m["wall_s"]) for m in metas]
+        lines.append(
+            f"| {model} | {len(metas)} | {early} | {min(epochs)}–{max(epochs)} | {min(best)}–{max(best)} | "
+            f"{min(wall):.0f}–{max(wall):.0f} | {sum(wall):.0f} |"
+        )
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Console entry point."""
     p = argparse.ArgumentParser(prog="python -m predictors.seed_table", description=__doc__.splitlines()[0])
-    p.add_argument("files", nargs="+", help="predictors.evaluate --save JSON, one per training seed")
+    p.add_argument("files", nargs="*", help="predictors.evaluate --save JSON, one per training seed")
     p.add_argument("--models", default="s-cgru", help="comma list of the trained models to tabulate")
     p.add_argument("--baseline", default="dcvm")
     p.add_argument("--summary-only", action="store_true", help="print only the one-row-per-model summary")
+    p.add_argument(
+        "--budget", default="", help="instead: the training budget of the checkpoints in DIR/seed*/"
+    )
     a = p.parse_args(argv)
+    if a.budget:
+        if not list(Path(a.budget).glob("seed*/*.pt")):
+            print(f"predictors.seed_table: error: --budget: no {a.budget}/seed*/*.pt", file=sys.stderr)
+            return 2
+        print(budget_table(Path(a.budget)))
+        return 0
+    if not a.files:
+        print("predictors.seed_table: error: give evaluate JSON files (or --budget DIR)", file=sys.stderr)
+        return 2
     runs = []
     for f in a.files:
         try:
