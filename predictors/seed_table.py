@@ -142,6 +142,25 @@ def budget_table(folder: Path) -> str:
     return "\n".join(lines)
 
 
+def val_table(folder: Path) -> str:
+    """Markdown: per model and scene, the selected val ADE of the checkpoints in ``folder/seed*/``.
+
+    The number model selection saw, so two studies (an ablation) can be compared without reading test.
+    """
+    from predictors.train import checkpoint_meta
+
+    vals: dict[tuple[str, str], list[float]] = {}
+    for ckpt in sorted(folder.glob("seed*/*.pt")):
+        meta = checkpoint_meta(ckpt)
+        if "epochs_run" in meta:
+            model, scene = ckpt.stem.split("_", 1)
+            vals.setdefault((model, scene), []).append(float(meta["val_ade"]))
+    lines = ["| model | scene | val ADE (mean ± sd) | seeds |", "|---|---|---|---|"]
+    for (model, scene), v in sorted(vals.items()):
+        lines.append(f"| {model} | {scene} | {_mean_sd(np.asarray(v))} | {len(v)} |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Console entry point."""
     p = argparse.ArgumentParser(prog="python -m predictors.seed_table", description=__doc__.splitlines()[0])
@@ -149,18 +168,20 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--models", default="s-cgru", help="comma list of the trained models to tabulate")
     p.add_argument("--baseline", default="dcvm")
     p.add_argument("--summary-only", action="store_true", help="print only the one-row-per-model summary")
-    p.add_argument(
-        "--budget", default="", help="instead: the training budget of the checkpoints in DIR/seed*/"
-    )
+    p.add_argument("--budget", default="", help="instead: the training budget of DIR/seed*/*.pt")
+    p.add_argument("--val", default="", help="instead: the selected val ADE of DIR/seed*/*.pt")
     a = p.parse_args(argv)
-    if a.budget:
-        if not list(Path(a.budget).glob("seed*/*.pt")):
-            print(f"predictors.seed_table: error: --budget: no {a.budget}/seed*/*.pt", file=sys.stderr)
-            return 2
-        print(budget_table(Path(a.budget)))
-        return 0
+    for flag, folder, make in (("--budget", a.budget, budget_table), ("--val", a.val, val_table)):
+        if folder:
+            if not list(Path(folder).glob("seed*/*.pt")):
+                print(f"predictors.seed_table: error: {flag}: no {folder}/seed*/*.pt", file=sys.stderr)
+                return 2
+            print(make(Path(folder)))
+            return 0
     if not a.files:
-        print("predictors.seed_table: error: give evaluate JSON files (or --budget DIR)", file=sys.stderr)
+        print(
+            "predictors.seed_table: error: give evaluate JSON files (or --budget/--val DIR)", file=sys.stderr
+        )
         return 2
     runs = []
     for f in a.files:

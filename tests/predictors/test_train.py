@@ -262,8 +262,11 @@ def test_train_all_repeats_runs_per_seed(data_root: Path, tmp_path: Path) -> Non
     args = _train_all_args(data_root, out, tmp_path / "logs")
     assert train_all.main([*args, "--models", "lstm", "--scenes", "eth", "--seeds", "3,4"]) == 0
     assert [checkpoint_meta(out / f"seed{k}" / "lstm_eth.pt")["seed"] for k in (3, 4)] == [3, 4]
-    from predictors.seed_table import budget_table
+    from predictors.seed_table import budget_table, val_table
 
     row = budget_table(out).splitlines()[2]
     assert row.startswith("| lstm | 2 | 0 | 1–1 | 1–1 |")  # two one-epoch runs, neither stopped early
+    val = [checkpoint_meta(out / f"seed{k}" / "lstm_eth.pt")["val_ade"] for k in (3, 4)]
+    row = val_table(out).splitlines()[2]
+    assert row == f"| lstm | eth | {np.mean(val):.3f} ± {np.std(val, ddof=1):.3f} | 2 |"
     assert train_all.main([*args, "--seeds", "one"]) == 2
