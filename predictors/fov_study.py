@@ -153,6 +153,10 @@ def main(argv: list[str] | None = None) -> int:
         res: dict[str, object] = {**budget, "fovs": fovs, "seeds": a.seeds, "runs": {}, "cvm_val_ade": {}}
         if save.is_file():  # resume: add to an earlier study with the same budget, every scene kept
             old = json.loads(save.read_text())
+            if not isinstance(old, dict) or not isinstance(old.get("runs"), dict):
+                raise ValueError(
+                    f"{save}: not a field-of-view study (no field 'runs'); choose another --save"
+                )
             for k in BUDGET_KEYS:
                 if old.get(k, 0) != budget[k]:
                     raise ValueError(
@@ -162,12 +166,12 @@ def main(argv: list[str] | None = None) -> int:
             res["runs"] = old["runs"]
             res["cvm_val_ade"] = old.get("cvm_val_ade", {})
             res["fovs"] = sorted({*map(float, old.get("fovs", [])), *fovs})
+        data = Path(a.data) if a.data else default_data_root()
+        res["cvm_val_ade"] |= {s: cvm_val_ade(s, data) for s in scenes}  # type: ignore[operator]
     except (ValueError, FileNotFoundError, json.JSONDecodeError) as exc:
         print(f"predictors.fov_study: error: {exc}", file=sys.stderr)
         return 2
-    data = Path(a.data) if a.data else default_data_root()
     runs: dict[str, dict[str, list[dict]]] = res["runs"]  # type: ignore[assignment]
-    res["cvm_val_ade"] |= {s: cvm_val_ade(s, data) for s in scenes}  # type: ignore[operator]
     write_text_atomic(save, json.dumps(res, indent=1))  # a resumed study gains the CVM column at once
     ckpt = save.with_suffix(".pt")
     for seed in range(a.seeds):  # seeds outermost: an interrupted study still has every angle

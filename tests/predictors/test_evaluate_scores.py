@@ -123,6 +123,10 @@ def test_fov_study_resume_keeps_other_scenes_and_refuses_another_budget(
     assert fov_study.main([*args, "--epochs", "5"]) == 2
     assert "field 'epochs' is 4 there but 5 here" in capsys.readouterr().err
     assert save.read_text() == before  # nothing lost
+    other = tmp_path / "other.json"
+    other.write_text("[1, 2]")
+    assert fov_study.main([*args[:-1], str(other), "--epochs", "4"]) == 2
+    assert "not a field-of-view study" in capsys.readouterr().err and other.read_text() == "[1, 2]"
     assert fov_study.main([*args, "--epochs", "4"]) == 0  # every run already there: nothing trains
     saved = json.loads(save.read_text())
     assert set(saved["runs"]) == {"eth", "hotel"} and saved["cvm_val_ade"]["eth"] < 1e-5  # CV is exact here
