@@ -174,8 +174,7 @@ def _draw_safety_vs_efficiency(ax: Axes, summary: dict[str, Any], names: Sequenc
         lo, hi = agg["collision_ci95"]
         rate = agg["collision_rate"]
         x = agg["censored_mean_delay"]
-        yerr = [[max(rate - lo, 0.0)], [max(hi - rate, 0.0)]]
-        ax.errorbar(x, rate, yerr=yerr, fmt="o", capsize=4, label=name)
+        ax.errorbar(x, rate, yerr=[[rate - lo], [hi - rate]], fmt="o", capsize=4, label=name)
         ax.annotate(name, (x, rate), textcoords="offset points", xytext=(6, 6), fontsize=8)
     ax.set_xlabel("delay at the crossing, non-passing episodes at the duration (s)  → less efficient")
     ax.set_ylabel("collision rate (95% Wilson CI)  → less safe")

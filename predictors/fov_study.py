@@ -25,6 +25,8 @@ from scipy import stats
 from crossing_common.files import write_text_atomic
 from predictors.baselines import cvm
 from predictors.data import SCENES, default_data_root, load_split, to_batch
+from predictors.evaluate import EVAL_SCENES, errors
+from predictors.train import TrainConfig, checkpoint_meta, train
 
 DEFAULT_FOVS: tuple[float, ...] = (60.0, 85.0, 120.0, 180.0, 360.0)
 SEED_PAPER_FOV: dict[str, float] = {"eth": 85.0, "hotel": 75.0, "univ": 135.0, "sdd": 120.0}
@@ -40,7 +42,6 @@ def mean_ci(values: list[float], level: float = 0.95) -> tuple[float, float]:
     return float(x.mean()), half
 
 
-STUDY_SCENES: tuple[str, ...] = (*SCENES, "sdd")
 BUDGET_KEYS: tuple[str, ...] = ("epochs", "train_fraction", "patience", "lr_plateau")
 """What a resumed study must share with the saved one (older files lack the last two: 0, 0)."""
 
@@ -48,13 +49,11 @@ BUDGET_KEYS: tuple[str, ...] = ("epochs", "train_fraction", "patience", "lr_plat
 def cvm_val_ade(scene: str, data: Path) -> float:
     """Constant velocity's most-likely ADE on the scene's val split: the bar every run has to clear."""
     b = to_batch(load_split(data, scene, "val"))
-    return float((cvm(b.obs) - b.fut).norm(dim=-1).mean())
+    return float(errors(cvm(b.obs), b.fut)[0].mean())
 
 
 def run_one(scene: str, fov: float, seed: int, budget: dict[str, float], data: Path, out: Path) -> dict:
     """Train one S-CGRU with this sector and seed; return its selected val ADE/FDE and epochs."""
-    from predictors.train import TrainConfig, checkpoint_meta, train
-
     cfg = TrainConfig(
         model="s-cgru",
         scene=scene,
@@ -139,8 +138,8 @@ def main(argv: list[str] | None = None) -> int:
         scenes = [s for s in a.scenes.split(",") if s]
         fovs = [float(f) for f in a.fovs.split(",") if f]
         for s in scenes:
-            if s not in STUDY_SCENES:
-                raise ValueError(f"--scenes: unknown scene {s!r}; choose from {STUDY_SCENES}")
+            if s not in EVAL_SCENES:
+                raise ValueError(f"--scenes: unknown scene {s!r}; choose from {EVAL_SCENES}")
         for f in fovs:
             if not 0.0 < f <= 360.0:
                 raise ValueError(f"--fovs: angle {f} outside (0, 360]")

@@ -20,6 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from predictors.data import SCENES
+from predictors.evaluate import EVAL_SCENES
+from predictors.train import checkpoint_meta
 
 ROWS: tuple[tuple[str, int, str], ...] = (
     ("k1", 0, "K=1 ADE"),
@@ -94,7 +96,7 @@ def table(runs: list[dict], model: str, baseline: str) -> tuple[str, int]:
     head = "| scene | metric | " + f"{model} (mean ± sd, n seeds) | {baseline} | difference |"
     lines = [head, "|---|---|---|---|---|"]
     wins = 0
-    for scene in (*SCENES, "sdd"):
+    for scene in EVAL_SCENES:
         beats = []
         for metric, i, label in ROWS:
             m = _values(runs, model, scene, metric, i)
@@ -113,19 +115,26 @@ def table(runs: list[dict], model: str, baseline: str) -> tuple[str, int]:
     return "\n".join(lines), wins
 
 
+def _finished_runs(folder: Path) -> list[tuple[str, str, dict]]:
+    """(model, scene, metadata) of every checkpoint in ``folder/seed*/`` whose run has finished."""
+    runs = []
+    for ckpt in sorted(folder.glob("seed*/*.pt")):
+        meta = checkpoint_meta(ckpt)
+        if "epochs_run" in meta:  # a run still training has saved only its best epoch so far
+            model, scene = ckpt.stem.split("_", 1)
+            runs.append((model, scene, meta))
+    return runs
+
+
 def budget_table(folder: Path) -> str:
     """Markdown: per model, the training budget its checkpoints in ``folder/seed*/`` record.
 
     A run "stopped early" when its last epoch came ``patience`` epochs after its best; otherwise it was
     stopped by the clock (or ran every epoch), and may have had more to give.
     """
-    from predictors.train import checkpoint_meta
-
     per_model: dict[str, list[dict]] = {}
-    for ckpt in sorted(folder.glob("seed*/*.pt")):
-        meta = checkpoint_meta(ckpt)
-        if "epochs_run" in meta:  # a run still training has saved only its best epoch so far
-            per_model.setdefault(ckpt.stem.split("_")[0], []).append(meta)
+    for model, _, meta in _finished_runs(folder):
+        per_model.setdefault(model, []).append(meta)
     lines = [
         "| model | runs | stopped early | epochs run | best epoch | wall s per run | wall s in all |",
         "|---|---|---|---|---|---|---|",
@@ -147,14 +156,9 @@ def val_table(folder: Path) -> str:
 
     The number model selection saw, so two studies (an ablation) can be compared without reading test.
     """
-    from predictors.train import checkpoint_meta
-
     vals: dict[tuple[str, str], list[float]] = {}
-    for ckpt in sorted(folder.glob("seed*/*.pt")):
-        meta = checkpoint_meta(ckpt)
-        if "epochs_run" in meta:
-            model, scene = ckpt.stem.split("_", 1)
-            vals.setdefault((model, scene), []).append(float(meta["val_ade"]))
+    for model, scene, meta in _finished_runs(folder):
+        vals.setdefault((model, scene), []).append(float(meta["val_ade"]))
     lines = ["| model | scene | val ADE (mean ± sd) | seeds |", "|---|---|---|---|"]
     for (model, scene), v in sorted(vals.items()):
         lines.append(f"| {model} | {scene} | {_mean_sd(np.asarray(v))} | {len(v)} |")
