@@ -1,4 +1,4 @@
-"""Driving policies for `crossing_env/Crossing-v0`: callables `policy(obs) -> action`, and their registry.
+"""Driving policies for `crossing_env/Crossing-v0`: the `Policy` protocol, the policies, and their registry.
 
 Every policy reads only the observation (never the ground truth). `make_policy("yielding", scenario=cfg)`
 builds a registered one; `POLICIES` lists the default table, `register_policy` adds one, and
@@ -17,6 +17,7 @@ from agents.config import (
     TTCBrakeConfig,
     YieldingConfig,
 )
+from agents.policy import Policy, as_policy
 from agents.predictive import PredictiveYielding
 from agents.registry import (
     BUILTIN_POLICIES,
@@ -41,12 +42,14 @@ __all__ = [
     "DrivingConfig",
     "HighwayEnvRule",
     "HighwayRuleConfig",
+    "Policy",
     "PredictiveYielding",
     "PredictiveYieldingConfig",
     "TTCBrakeConfig",
     "TTCEmergencyBrake",
     "YieldingConfig",
     "YieldingPolicy",
+    "as_policy",
     "make_policy",
     "policy_names",
     "policy_uses_predictors",

@@ -37,6 +37,9 @@ class ConstantSpeed:
     def __init__(self, config: ConstantSpeedConfig | None = None) -> None:
         self.config = config or ConstantSpeedConfig()
 
+    def reset(self, seed: int | None = None) -> None:
+        """Stateless: nothing to forget between episodes (`agents.Policy.reset`)."""
+
     def __call__(self, obs: ObsLike) -> np.ndarray:
         """Action 0 ("hold speed") for every observation in the batch."""
         view = parse_observation(obs)
@@ -78,6 +81,9 @@ class TTCEmergencyBrake:
         ttc = np.where(view.present & (start <= end) & (view.speed[:, None] > 5e-3), start, np.inf)
         return ttc.min(axis=1, initial=np.inf)
 
+    def reset(self, seed: int | None = None) -> None:
+        """Stateless: nothing to forget between episodes (`agents.Policy.reset`)."""
+
     def __call__(self, obs: ObsLike) -> np.ndarray:
         """Full braking if TTC < threshold, else cruise / follow."""
         view = parse_observation(obs)
@@ -116,6 +122,9 @@ class HighwayEnvRule:
         qy = np.maximum(np.abs(py) - hy, 0.0)
         hit = (qx * qx + qy * qy <= cfg.pedestrian_radius**2) & view.present[..., None]
         return hit.any(axis=(1, 2))
+
+    def reset(self, seed: int | None = None) -> None:
+        """Stateless: nothing to forget between episodes (`agents.Policy.reset`)."""
 
     def __call__(self, obs: ObsLike) -> np.ndarray:
         """Yield (target speed 0) if a collision is predicted, else cruise / follow."""

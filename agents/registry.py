@@ -1,27 +1,30 @@
 """The policy registry: names → policy factories, and `make_policy` to build one by name or plug-in spec.
 
-A policy is a callable ``policy(obs) -> action`` (float32, shape (1,)) that reads only the observation;
-a class attribute ``uses_predictors = True`` asks the evaluation for the prediction wrappers. Besides the
-built-in names, `make_policy` accepts (also inside worker processes and Ray tasks, which get the spec
-string, never a live object):
+A policy is an `agents.policy.Policy`: ``policy(obs) -> action`` (float32, shape (1,)) reading only the
+observation, and ``policy.reset(seed)`` before each episode; a class attribute ``uses_predictors = True``
+asks the rollout for the prediction wrappers. What a factory returns goes through `agents.policy.as_policy`
+(a plain function becomes a stateless `Policy`). Besides the built-in names, `make_policy` accepts (also
+inside worker processes and Ray tasks, which get the spec string, never a live object):
 
 - a name registered with `register_policy` in this process,
 - a name from the ``crossing_env.policies`` entry-point group of installed packages,
 - ``"pkg.module:attr"``: a policy class whose constructor takes its config (``attr.config_class``, a
-  `DrivingConfig` subclass, as the built-ins) or a factory called as ``attr(scenario=..., dt=...)``,
+  `DrivingConfig` subclass, as the built-ins) or a factory (a function or class) called with those of
+  ``scenario=`` and ``dt=`` that it names (all with ``**kwargs``; none for a no-argument constructor),
 - ``"sb3:path/model.zip"``: a Stable-Baselines3 model (`agents.sb3.SB3Policy`, the ``rl`` extra).
 """
 
 from __future__ import annotations
 
+import hashlib
 import importlib
+import inspect
+import json
 from collections.abc import Callable
 from dataclasses import dataclass, fields, replace
 from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 from agents.baselines import ConstantSpeed, HighwayEnvRule, TTCEmergencyBrake
 from agents.config import (
@@ -33,12 +36,10 @@ from agents.config import (
     TTCBrakeConfig,
     YieldingConfig,
 )
+from agents.policy import ConstantAction, Policy, RandomAction, as_policy
 from agents.predictive import PredictiveYielding
-from agents.view import ObsLike
 from agents.yielding import AlwaysCautious, YieldingPolicy
 from scenarios.config import ScenarioConfig
-
-Policy = Callable[[ObsLike], np.ndarray]
 
 ENTRY_POINT_GROUP = "crossing_env.policies"
 """Entry-point group under which installed packages publish policies (value: ``"pkg.module:attr"``)."""
@@ -70,12 +71,45 @@ BUILTIN_POLICIES: tuple[str, ...] = tuple(_REGISTRY)
 """The rule-based policies (always available)."""
 POLICIES: tuple[str, ...] = (*BUILTIN_POLICIES, "ppo")
 """The default table of `crossing-eval`: the rule-based policies and the shipped PPO (``rl`` extra)."""
+_REGISTRY["constant"] = PolicyEntry(ConstantAction, None, uses_predictors=False)
+_REGISTRY["random"] = PolicyEntry(RandomAction, None, uses_predictors=False)
+"""Trivial ones for replays and smoke runs (action 0; uniform from the episode seed); not in the table."""
+
+
+SHIPPED_MANIFEST = SHIPPED_PPO.parent / "manifest.json"
+"""sha256 of each shipped policy file: a replaced or corrupted ``ppo.zip`` or statistics file is refused."""
+_VERIFIED: set[str] = set()
+
+
+def verify_shipped_policy_files() -> None:
+    """Check every file listed in ``agents/weights/manifest.json`` against its sha256 (once per process).
+
+    Raises:
+        agents.sb3.ModelFileError: a file is missing or differs from the manifest (the message names it).
+    """
+    from agents.sb3 import ModelFileError
+
+    manifest = json.loads(SHIPPED_MANIFEST.read_text(encoding="utf-8"))
+    for name, expected in manifest.items():
+        if name in _VERIFIED:
+            continue
+        path = SHIPPED_PPO.parent / name
+        if not path.is_file():
+            raise ModelFileError(f"{path}: shipped policy file is missing")
+        actual = hashlib.sha256(path.read_bytes()).hexdigest()
+        if actual != expected:
+            raise ModelFileError(
+                f"{path}: sha256 {actual[:12]}... does not match the manifest's {expected[:12]}...;"
+                " the shipped policy file was replaced or corrupted (restore it from the repository)"
+            )
+        _VERIFIED.add(name)
 
 
 def _shipped_ppo(scenario: ScenarioConfig | None = None, dt: float | None = None) -> Policy:
-    """The PPO policy shipped in ``agents/weights/ppo.zip``."""
+    """The PPO policy shipped in ``agents/weights/ppo.zip``, checked against the manifest first."""
     from agents.sb3 import SB3Policy
 
+    verify_shipped_policy_files()
     return SB3Policy(SHIPPED_PPO)
 
 
@@ -197,6 +231,18 @@ def scenario_settings(scenario: ScenarioConfig) -> dict[str, Any]:
     }
 
 
+def _call_factory(factory: Callable[..., Any], scenario: ScenarioConfig | None, dt: float | None) -> Any:
+    """``factory(...)`` with the keywords among ``scenario`` and ``dt`` that it accepts (the rule above)."""
+    offered = {"scenario": scenario, "dt": dt}
+    try:
+        params = inspect.signature(factory).parameters
+    except (TypeError, ValueError):  # a builtin without a signature: the documented keywords
+        return factory(**offered)
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+        return factory(**offered)
+    return factory(**{k: v for k, v in offered.items() if k in params})
+
+
 def make_policy(
     name: str, scenario: ScenarioConfig | None = None, dt: float | None = None, **overrides: Any
 ) -> Policy:
@@ -212,7 +258,7 @@ def make_policy(
     if entry.config is None:
         if overrides:
             raise ValueError(f"policy {name!r} has no config class; overrides {sorted(overrides)} refused")
-        return entry.factory(scenario=scenario, dt=dt)
+        return as_policy(_call_factory(entry.factory, scenario, dt))
     cfg_cls = entry.config
     allowed = {f.name for f in fields(cfg_cls)}
     unknown = sorted(set(overrides) - allowed)
@@ -225,7 +271,7 @@ def make_policy(
         cfg = replace(cfg, dt=float(dt))
     if overrides:
         cfg = replace(cfg, **overrides)
-    return entry.factory(cfg)
+    return as_policy(entry.factory(cfg))
 
 
 def policy_uses_predictors(name: str) -> bool:

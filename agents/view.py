@@ -6,8 +6,9 @@ Geometry recovered from the observation (ego frame: heading +x, origin at the eg
 - the crossing's far edge lies ``-distance_past_crossing - length / 2`` ahead;
 - pedestrian slots give relative position and velocity; the ego's lane centre is at dy = 0.
 
-Policies accept one observation (``obs["ego"]`` of shape (6,), action (1,)) or a batch with any leading axes
-(``obs["ego"]`` (..., 6), action (..., 1)), so they drive Gymnasium vector envs directly.
+Policies accept one observation (``obs[EGO_KEY]`` of shape (6,), action (1,)) or a batch with any leading
+axes (``obs[EGO_KEY]`` (..., 6), action (..., 1)), so they drive Gymnasium vector envs directly. Keys and
+columns are read by their names in `crossing_env.observation`.
 """
 
 from __future__ import annotations
@@ -20,12 +21,24 @@ import numpy as np
 
 from agents.config import DrivingConfig
 from crossing_env.env import acceleration_to_action
+from crossing_env.observation import (
+    CROSSING_INTENT_KEY,
+    CROSSING_INTENTION_KEY,
+    EGO_KEY,
+    HISTORY_INTERVAL,
+    PEDESTRIANS_KEY,
+    PREDICTED_PATHS_KEY,
+    VEHICLES_KEY,
+    EgoColumn,
+    PedestrianColumn,
+    PointColumn,
+    VehicleColumn,
+)
 
 ObsLike = Mapping[str, Any]
 
 EPS = 1e-6
-PREDICTION_STEP = 0.4
-"""Time between the points of ``obs["predicted_paths"]`` (s): the trajectory predictors' 2.5 Hz cadence."""
+_EGO, _PED, _VEH = len(EgoColumn), len(PedestrianColumn), len(VehicleColumn)
 
 
 @dataclass
@@ -46,7 +59,7 @@ class View:
     on_crossing: np.ndarray  # (B, K) bool
     waiting: np.ndarray
     on_road: np.ndarray
-    vehicles: np.ndarray  # (B, M, 7)
+    vehicles: np.ndarray  # (B, M, 7) columns `VehicleColumn`
     intention: np.ndarray | None  # (B, K)
     paths: np.ndarray | None  # (B, K, T, 2)
     intent: np.ndarray | None = None  # (B, K) P(means to cross at all), from ``crossing_intent`` if given
@@ -54,50 +67,50 @@ class View:
 
 def parse_observation(obs: ObsLike) -> View:
     """Parse a single or batched observation into (B, ...) float64 arrays; raise on a bad layout."""
-    for key in ("ego", "pedestrians"):
+    for key in (EGO_KEY, PEDESTRIANS_KEY):
         if key not in obs:
             raise KeyError(f"policy observation lacks {key!r}; got keys {sorted(obs)}")
-    ego = np.asarray(obs["ego"], dtype=np.float64)
-    if ego.ndim < 1 or ego.shape[-1] != 6:
-        raise ValueError(f"obs['ego'] must have shape (..., 6), got {ego.shape}")
+    ego = np.asarray(obs[EGO_KEY], dtype=np.float64)
+    if ego.ndim < 1 or ego.shape[-1] != _EGO:
+        raise ValueError(f"obs[{EGO_KEY!r}] must have shape (..., {_EGO}), got {ego.shape}")
     lead = ego.shape[:-1]
-    ego = ego.reshape(-1, 6)
+    ego = ego.reshape(-1, _EGO)
     b = ego.shape[0]
-    ped = np.asarray(obs["pedestrians"], dtype=np.float64)
-    if ped.shape[: len(lead)] != lead or ped.ndim != len(lead) + 2 or ped.shape[-1] != 8:
-        raise ValueError(f"obs['pedestrians'] must have shape {(*lead, 'K', 8)}, got {ped.shape}")
-    ped = ped.reshape(b, -1, 8)
+    ped = np.asarray(obs[PEDESTRIANS_KEY], dtype=np.float64)
+    if ped.shape[: len(lead)] != lead or ped.ndim != len(lead) + 2 or ped.shape[-1] != _PED:
+        raise ValueError(f"obs[{PEDESTRIANS_KEY!r}] must have shape {(*lead, 'K', _PED)}, got {ped.shape}")
+    ped = ped.reshape(b, -1, _PED)
     k = ped.shape[1]
-    if "vehicles" in obs:
-        veh = np.asarray(obs["vehicles"], dtype=np.float64).reshape(b, -1, 7)
+    if VEHICLES_KEY in obs:
+        veh = np.asarray(obs[VEHICLES_KEY], dtype=np.float64).reshape(b, -1, _VEH)
     else:
-        veh = np.zeros((b, 0, 7))
-    intention = obs.get("crossing_intention")
+        veh = np.zeros((b, 0, _VEH))
+    intention = obs.get(CROSSING_INTENTION_KEY)
     if intention is not None:
         intention = np.asarray(intention, dtype=np.float64).reshape(b, k)
-    paths = obs.get("predicted_paths")
+    paths = obs.get(PREDICTED_PATHS_KEY)
     if paths is not None:
         paths = np.asarray(paths, dtype=np.float64)
-        paths = paths.reshape(b, k, paths.shape[-2], 2)
-    intent = obs.get("crossing_intent")
+        paths = paths.reshape(b, k, paths.shape[-2], len(PointColumn))
+    intent = obs.get(CROSSING_INTENT_KEY)
     if intent is not None:
         intent = np.asarray(intent, dtype=np.float64).reshape(b, k)
-    present = ped[..., 0] > 0.5
+    present = ped[..., PedestrianColumn.PRESENCE] > 0.5
     return View(
         lead=lead,
-        speed=ego[:, 0],
-        to_stop=ego[:, 2],
-        past=ego[:, 3],
-        car_green=ego[:, 4],
-        zebra=ego[:, 5],
+        speed=ego[:, EgoColumn.SPEED],
+        to_stop=ego[:, EgoColumn.DISTANCE_TO_STOP_LINE],
+        past=ego[:, EgoColumn.DISTANCE_PAST_CROSSING],
+        car_green=ego[:, EgoColumn.CAR_GREEN],
+        zebra=ego[:, EgoColumn.ZEBRA],
         present=present,
-        px=ped[..., 1],
-        py=ped[..., 2],
-        vx=ped[..., 3],
-        vy=ped[..., 4],
-        on_crossing=present & (ped[..., 5] > 0.5),
-        waiting=present & (ped[..., 6] > 0.5),
-        on_road=present & (ped[..., 7] > 0.5),
+        px=ped[..., PedestrianColumn.DX],
+        py=ped[..., PedestrianColumn.DY],
+        vx=ped[..., PedestrianColumn.VX],
+        vy=ped[..., PedestrianColumn.VY],
+        on_crossing=present & (ped[..., PedestrianColumn.ON_CROSSING] > 0.5),
+        waiting=present & (ped[..., PedestrianColumn.WAITING] > 0.5),
+        on_road=present & (ped[..., PedestrianColumn.ON_ROAD] > 0.5),
         vehicles=veh,
         intention=intention,
         paths=paths,
@@ -123,13 +136,18 @@ def follow(view: View, cfg: DrivingConfig) -> np.ndarray:
     veh = view.vehicles
     if veh.shape[1] == 0:
         return np.full(view.speed.shape, np.inf)
-    ahead = (veh[..., 0] > 0.5) & (np.abs(veh[..., 2]) < cfg.lane_width / 2) & (veh[..., 1] > 0.0)
-    gap = veh[..., 1] - cfg.ego_length / 2 - veh[..., 5] / 2
+    dx = veh[..., VehicleColumn.DX]
+    ahead = (
+        (veh[..., VehicleColumn.PRESENCE] > 0.5)
+        & (np.abs(veh[..., VehicleColumn.DY]) < cfg.lane_width / 2)
+        & (dx > 0.0)
+    )
+    gap = dx - cfg.ego_length / 2 - veh[..., VehicleColumn.LENGTH] / 2
     gap = np.where(ahead, gap, np.inf)
     j = np.argmin(gap, axis=1)
     rows = np.arange(gap.shape[0])
     s = np.maximum(gap[rows, j], 0.1)
-    lead_v = veh[rows, j, 3]
+    lead_v = veh[rows, j, VehicleColumn.VX]
     v = view.speed
     a_max, b = cfg.cruise_acceleration, cfg.idm_comfortable_deceleration
     s_star = cfg.idm_min_gap + np.maximum(
@@ -172,15 +190,16 @@ def corridor_interval(py: np.ndarray, vy: np.ndarray, half_width: float) -> tupl
 def path_interval(
     paths: np.ndarray, present: np.ndarray, half_width: float, min_x: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Corridor entry/exit times and entry x from predicted paths (B, K, T, 2) sampled every 0.4 s."""
-    t = PREDICTION_STEP * np.arange(1, paths.shape[2] + 1)
-    inside = (np.abs(paths[..., 1]) <= half_width) & (paths[..., 0] > min_x) & present[..., None]
+    """Corridor entry/exit times and entry x from predicted paths (B, K, T, 2), `HISTORY_INTERVAL` apart."""
+    t = HISTORY_INTERVAL * np.arange(1, paths.shape[2] + 1)
+    px, py = paths[..., PointColumn.X], paths[..., PointColumn.Y]
+    inside = (np.abs(py) <= half_width) & (px > min_x) & present[..., None]
     any_in = inside.any(axis=2)
     first = np.argmax(inside, axis=2)
     last = paths.shape[2] - 1 - np.argmax(inside[..., ::-1], axis=2)
-    t_in = np.where(any_in, t[first] - PREDICTION_STEP, np.inf)
+    t_in = np.where(any_in, t[first] - HISTORY_INTERVAL, np.inf)
     t_out = np.where(any_in, t[last], -np.inf)
-    x_in = np.take_along_axis(paths[..., 0], first[..., None], axis=2)[..., 0]
+    x_in = np.take_along_axis(px, first[..., None], axis=2)[..., 0]
     return t_in, t_out, x_in
 
 

@@ -1,7 +1,8 @@
 """The yielding policy, which gives way as the law asks, and its always-cautious variant.
 
 It reads only the observation (never the ground truth); with the prediction wrappers on it also reads
-``crossing_intention`` and ``predicted_paths``. Vehicles ahead are followed with the Intelligent Driver Model.
+``crossing_intention`` and ``predicted_paths`` (through `agents.view.View`). Vehicles ahead are followed with
+the Intelligent Driver Model.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from agents.view import (
     stop_acceleration,
     travel_time,
 )
+from crossing_env.observation import VehicleColumn
 
 
 class YieldingPolicy:
@@ -70,8 +72,8 @@ class YieldingPolicy:
         self._offers = np.zeros((0, 0, 3))
         self._committed = np.zeros(0, dtype=bool)
 
-    def reset(self) -> None:
-        """Forget offer timers and stop commitments (call between episodes; they also reset by themselves)."""
+    def reset(self, seed: int | None = None) -> None:
+        """Forget offer timers and stop commitments (`agents.Policy.reset`; deterministic, `seed` unused)."""
         self._offers = np.zeros((0, 0, 3))
         self._committed = np.zeros(0, dtype=bool)
 
@@ -274,11 +276,12 @@ class YieldingPolicy:
             return np.full(view.speed.shape, np.inf)
         front = cfg.ego_length / 2
         near_rel, far_rel = self._crossing_span(view)
-        veh_front = veh[..., 1] + veh[..., 5] / 2
-        speed = np.hypot(veh[..., 3], veh[..., 4])
-        beside = (np.abs(veh[..., 2]) >= cfg.lane_width / 2) & (np.abs(veh[..., 2]) <= 2.5 * cfg.lane_width)
+        veh_front = veh[..., VehicleColumn.DX] + veh[..., VehicleColumn.LENGTH] / 2
+        speed = np.hypot(veh[..., VehicleColumn.VX], veh[..., VehicleColumn.VY])
+        lateral = np.abs(veh[..., VehicleColumn.DY])
+        beside = (lateral >= cfg.lane_width / 2) & (lateral <= 2.5 * cfg.lane_width)
         occluder = (
-            (veh[..., 0] > 0.5)
+            (veh[..., VehicleColumn.PRESENCE] > 0.5)
             & beside
             & (speed < 0.5)
             & (veh_front >= near_rel - cfg.occlusion_window)
@@ -318,14 +321,14 @@ class YieldingPolicy:
         if veh.shape[1] == 0:
             return np.full(view.speed.shape, np.inf)
         near_rel, far_rel = self._crossing_span(view)
-        veh_front = veh[..., 1] + veh[..., 5] / 2
-        dy = veh[..., 2]
+        veh_front = veh[..., VehicleColumn.DX] + veh[..., VehicleColumn.LENGTH] / 2
+        dy = veh[..., VehicleColumn.DY]
         adjacent = (np.abs(dy) >= cfg.lane_width / 2) & (dy > cfg.road_right) & (dy < cfg.half_left)
         candidate = (
-            (veh[..., 0] > 0.5)
+            (veh[..., VehicleColumn.PRESENCE] > 0.5)
             & adjacent
-            & (veh[..., 3] > cfg.moving_speed)
-            & (veh[..., 1] > 0.0)
+            & (veh[..., VehicleColumn.VX] > cfg.moving_speed)
+            & (veh[..., VehicleColumn.DX] > 0.0)
             & (veh_front >= near_rel - cfg.no_overtaking_zone)
             & (veh_front <= far_rel)
             & (view.zebra[:, None] > 0.5)
@@ -334,8 +337,8 @@ class YieldingPolicy:
         if not candidate.any():
             return np.full(view.speed.shape, np.inf)
         masked = veh.copy()
-        masked[..., 0] = candidate
-        masked[..., 2] = 0.0  # treat it as if in the ego's lane
+        masked[..., VehicleColumn.PRESENCE] = candidate
+        masked[..., VehicleColumn.DY] = 0.0  # treat it as if in the ego's lane
         a = follow(replace(view, vehicles=masked), cfg)
         return np.maximum(a, -cfg.comfortable_deceleration)
 

@@ -2,20 +2,26 @@
 
 Both envs run a random policy with no rendering, resets included. Machines here are noisy, so the two
 envs are timed in alternating bursts (one burst each per round) and the ratio of the totals is what
-matters, not the absolute numbers.
+matters, not the absolute numbers. The last line states whether bare Crossing-v0 meets the target ratio
+(`--target`, 200x by default); the exit status is 0 either way unless `--check` is given.
 
     python benchmarks/env_throughput.py [--rounds 8] [--burst 1.0] [--scenario default] [--wrappers]
+                                        [--target 200] [--check]
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 import warnings
 
 import gymnasium as gym
 
 import crossing_env  # noqa: F401  (registers Crossing-v0)
+
+TARGET_RATIO = 200.0
+"""Bare Crossing-v0 should run at least this many times as many steps per second as intersection-v0."""
 
 
 class Timer:
@@ -65,20 +71,27 @@ def main() -> None:
     parser.add_argument(
         "--wrappers", action="store_true", help="also time Crossing-v0 with each predictor wrapper"
     )
+    parser.add_argument(
+        "--target",
+        type=float,
+        default=TARGET_RATIO,
+        help="target ratio of bare Crossing-v0 to intersection-v0 (default: %(default)s)",
+    )
+    parser.add_argument("--check", action="store_true", help="exit with status 1 if the target is missed")
     args = parser.parse_args()
-    if args.rounds < 1 or args.burst <= 0:
-        parser.error("--rounds must be >= 1 and --burst > 0")
+    if args.rounds < 1 or args.burst <= 0 or args.target <= 0:
+        parser.error("--rounds must be >= 1, --burst > 0 and --target > 0")
 
     import highway_env  # noqa: F401  (registers intersection-v0)
 
     timers = {"Crossing-v0": Timer(gym.make("crossing_env/Crossing-v0", scenario=args.scenario))}
     if args.wrappers:
-        from predictors.registry import available_wrappers
+        from rollout import INTENTION_WRAPPERS, NONE, TRAJECTORY_WRAPPERS, make_env
 
-        for name, wrap in available_wrappers().items():
-            timers[f"Crossing-v0 + {name}"] = Timer(
-                wrap(gym.make("crossing_env/Crossing-v0", scenario=args.scenario))
-            )
+        for name in INTENTION_WRAPPERS:
+            timers[f"Crossing-v0 + intention {name}"] = Timer(make_env(args.scenario, name, NONE)[0])
+        for name in TRAJECTORY_WRAPPERS:
+            timers[f"Crossing-v0 + predictor {name}"] = Timer(make_env(args.scenario, NONE, name)[0])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # intersection-v0 warns that it is out of date
         peer = Timer(gym.make("intersection-v0"))
@@ -92,7 +105,14 @@ def main() -> None:
             f"ratio to intersection-v0: {timer.rate / peer.rate:6.1f}x"
         )
     print(f"{'highway-env intersection-v0':40s} {peer.rate:9.1f} steps/s ({peer.episodes} episodes)")
-    print(f"scenario: {args.scenario}; target for bare Crossing-v0: >= 100x")
+    ratio = timers["Crossing-v0"].rate / peer.rate
+    met = ratio >= args.target
+    print(
+        f"scenario: {args.scenario}; bare Crossing-v0 / intersection-v0 = {ratio:.1f}x; "
+        f"target >= {args.target:g}x: {'met' if met else 'NOT met'}"
+    )
+    if args.check and not met:
+        sys.exit(1)
 
 
 if __name__ == "__main__":

@@ -27,6 +27,13 @@ import numpy as np
 
 from crossing_common.files import write_text_atomic
 from crossing_env.env import CrossingEnv
+from crossing_env.observation import (
+    CROSSING_INTENTION_KEY,
+    EGO_KEY,
+    PEDESTRIANS_KEY,
+    EgoColumn,
+    PedestrianColumn,
+)
 from predictors.intention import ClassicalIntention, QLBIntention
 from scenarios import load_scenario
 from scenarios.config import BehaviourConfig, PedestrianConfig, ScenarioConfig
@@ -40,10 +47,12 @@ def cautious_action(obs: dict[str, np.ndarray], target_speed: float = 5.0) -> np
     Reads the observation only. Yielding to waiting pedestrians makes crossings in front of the ego common,
     which is what the benchmark needs to score.
     """
-    ped = obs["pedestrians"]
-    speed = float(obs["ego"][0])
-    near = (ped[:, 0] > 0.5) & (ped[:, 1] > 0.0) & (ped[:, 1] < 25.0) & (np.abs(ped[:, 2]) < 9.0)
-    if np.any(near & ((ped[:, 7] > 0.5) | (ped[:, 6] > 0.5))):
+    ped = obs[PEDESTRIANS_KEY]
+    speed = float(obs[EGO_KEY][EgoColumn.SPEED])
+    c = PedestrianColumn
+    dx, dy = ped[:, c.DX], ped[:, c.DY]
+    near = (ped[:, c.PRESENCE] > 0.5) & (dx > 0.0) & (dx < 25.0) & (np.abs(dy) < 9.0)
+    if np.any(near & ((ped[:, c.ON_ROAD] > 0.5) | (ped[:, c.WAITING] > 0.5))):
         return np.array([-0.4 if speed > 0.5 else 0.0], dtype=np.float32)
     return np.array([np.clip((target_speed - speed) / 3.0, -1.0, 1.0)], dtype=np.float32)
 
@@ -109,9 +118,9 @@ def run_episode(scenario: ScenarioConfig, seed: int) -> dict[str, np.ndarray]:
         present = slots >= 0
         ids = world.pedestrians.ids[slots[present]]
         rows.extend((step, int(i)) for i in ids)
-        on_road_obs.append(obs["pedestrians"][present, 7] > 0.5)
+        on_road_obs.append(obs[PEDESTRIANS_KEY][present, PedestrianColumn.ON_ROAD] > 0.5)
         for key, wrapper in wrappers.items():
-            preds[key].append(wrapper.observation(obs)["crossing_intention"][present])
+            preds[key].append(wrapper.observation(obs)[CROSSING_INTENTION_KEY][present])
         gt = info["ground_truth"]
         rear = gt.ego_position[0] - gt.ego_size[0] / 2
         hit = gt.on_road & (gt.pedestrian_positions[:, 0] > rear)

@@ -11,21 +11,19 @@ from __future__ import annotations
 
 import argparse
 import time
-from collections.abc import Callable
 
 import gymnasium as gym
 import numpy as np
 
-import crossing_env  # noqa: F401 - registers the env
-from predictors.oracle import OracleIntention, OracleTrajectory
-from predictors.trajectory_wrapper import TrajectoryPrediction
+from rollout import NONE, make_env
 
-WRAPPERS: dict[str, Callable[[gym.Env], gym.Env]] = {
-    "bare": lambda e: e,
-    "oracle intention": OracleIntention,
-    "s-cgru paths": TrajectoryPrediction,
-    "oracle paths": OracleTrajectory,
+WRAPPERS: dict[str, tuple[str, str]] = {
+    "bare": (NONE, NONE),
+    "oracle intention": ("oracle", NONE),
+    "s-cgru paths": (NONE, "s-cgru"),
+    "oracle paths": (NONE, "oracle"),
 }
+"""Row name → (intention, predictor) in `rollout`'s wrapper table."""
 
 
 def _episode(env: gym.Env, seed: int) -> tuple[int, float]:
@@ -46,9 +44,7 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=3)
     args = parser.parse_args()
     for sc in args.scenarios:
-        envs = {
-            name: wrap(gym.make("crossing_env/Crossing-v0", scenario=sc)) for name, wrap in WRAPPERS.items()
-        }
+        envs = {name: make_env(sc, *wrappers)[0] for name, wrappers in WRAPPERS.items()}
         _episode(envs["bare"], 0)  # warm up (kernel loading)
         totals = {name: [0, 0.0] for name in envs}
         for seed in range(args.seeds):

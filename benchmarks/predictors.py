@@ -11,7 +11,7 @@ drifts between rounds). Two batch sets:
 
 * the ETH test set as one batch (70 windows, 181 pedestrians; a synthetic batch of that shape without the
   data), with freshly initialised models at the paper's size, two controls and the half width;
-* the shipped leave-one-out checkpoints on their own test scenes, batched as ``predictors.evaluate``
+* the shipped leave-one-out checkpoints on their own test scenes, batched as ``studies.evaluate``
   batches them (whole windows, at most 256 pedestrians), ``--batches`` evenly spaced batches per scene.
 
 ``--fov-sweep`` trains a short S-CGRU run per field of view and reports *validation* ADE/FDE (never
@@ -24,6 +24,7 @@ import argparse
 import importlib
 import statistics
 import sys
+import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -43,6 +44,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from crossing_env.observation import PEDESTRIAN_HISTORY_KEY, PEDESTRIANS_KEY, PedestrianColumn
 from predictors.data import SCENES, default_data_root, iterate_batches, load_split, to_batch
 from predictors.models import (
     ModelConfig,
@@ -107,11 +109,11 @@ def time_models(
 def shipped_latency(data: Path, per_scene: int, rounds: int) -> dict[str, dict[str, object]] | None:
     """CPU seconds per batch of the shipped S-LSTM, S-GRU and S-CGRU checkpoints on their own test scenes.
 
-    Batches are whole windows of at most 256 pedestrians, as ``predictors.evaluate`` runs them;
+    Batches are whole windows of at most 256 pedestrians, as ``studies.evaluate`` runs them;
     ``per_scene`` evenly spaced batches of each scene, every model on each batch in turn, ``rounds``
     times. ``None`` if a checkpoint or a test split is missing.
     """
-    from predictors.train import WEIGHTS_DIR, load_model
+    from predictors.checkpoints import WEIGHTS_DIR, load_model
 
     out: dict[str, dict[str, object]] = {}
     for scene in SCENES:
@@ -135,7 +137,7 @@ def print_shipped_latency(res: dict[str, dict[str, object]], rounds: int, thread
     """Per scene and over all scenes: mean ms per batch, ratio of means and paired ratio to S-LSTM."""
     print(
         f"\nShipped leave-one-out checkpoints (hidden 128, embedding 64) on their test scenes, most-likely"
-        f" rollout, batches of <= 256 pedestrians as in predictors.evaluate, {rounds} round(s),"
+        f" rollout, batches of <= 256 pedestrians as in studies.evaluate, {rounds} round(s),"
         f" {threads} thread(s); ms per batch (ratio of means to S-LSTM, paired ratio):"
     )
     pooled: dict[str, list[float]] = {k: [] for k in SHIPPED_KINDS}
@@ -166,7 +168,7 @@ def wrapper_ms(k: int = 16, repeats: int = 200) -> tuple[float, float] | None:
     Every call gets a genuinely new history (each pedestrian moved by its own random offset), so the
     wrapper's translation cache never hits: this is the cost of a cache miss.
     """
-    from predictors.train import WEIGHTS_DIR
+    from predictors.checkpoints import WEIGHTS_DIR
     from predictors.trajectory_wrapper import TrajectoryPrediction
 
     if not (WEIGHTS_DIR / "s-cgru_all.pt").is_file():
@@ -177,8 +179,8 @@ def wrapper_ms(k: int = 16, repeats: int = 200) -> tuple[float, float] | None:
     class _Env(gym.Env):
         observation_space = spaces.Dict(
             {
-                "pedestrians": spaces.Box(-1e3, 1e3, (k, 4), np.float32),
-                "pedestrian_history": spaces.Box(-1e3, 1e3, (k, 8, 2), np.float32),
+                PEDESTRIANS_KEY: spaces.Box(-1e3, 1e3, (k, 4), np.float32),
+                PEDESTRIAN_HISTORY_KEY: spaces.Box(-1e3, 1e3, (k, 8, 2), np.float32),
             }
         )
         action_space = spaces.Discrete(1)
@@ -187,8 +189,8 @@ def wrapper_ms(k: int = 16, repeats: int = 200) -> tuple[float, float] | None:
     hist = rng.uniform(-10, 10, (k, 1, 2)) + np.arange(8)[None, :, None] * rng.uniform(-0.5, 0.5, (k, 1, 2))
     obs = [
         {
-            "pedestrians": np.ones((k, 4), np.float32),
-            "pedestrian_history": (hist + rng.normal(size=(k, 1, 2))).astype(np.float32),
+            PEDESTRIANS_KEY: np.ones((k, 4), np.float32),
+            PEDESTRIAN_HISTORY_KEY: (hist + rng.normal(size=(k, 1, 2))).astype(np.float32),
         }
         for _ in range(repeats + 20)
     ]
@@ -234,7 +236,7 @@ def wrapper_rollout(count: int, episodes: int = 2, steps: int = 150) -> dict[str
     ``observation()`` call of the wrapper (the whole added work, reset included) is timed with
     ``time.thread_time`` and classed as a cache hit or a recompute by the wrapper's counters.
     """
-    from predictors.train import WEIGHTS_DIR
+    from predictors.checkpoints import WEIGHTS_DIR
     from predictors.trajectory_wrapper import TrajectoryPrediction
 
     if not (WEIGHTS_DIR / "s-cgru_all.pt").is_file():
@@ -260,7 +262,7 @@ def wrapper_rollout(count: int, episodes: int = 2, steps: int = 150) -> dict[str
             out = observe(o)
             dt = time.thread_time() - t0
             (miss_t if env.cache_misses > misses else hit_t).append(dt)
-            present.append(int((o["pedestrians"][:, 0] > 0.5).sum()))
+            present.append(int((o[PEDESTRIANS_KEY][:, PedestrianColumn.PRESENCE] > 0.5).sum()))
             return out
 
         env.observation = timed  # type: ignore[method-assign]
@@ -286,11 +288,12 @@ def wrapper_rollout(count: int, episodes: int = 2, steps: int = 150) -> dict[str
 
 
 def fov_sweep(scene: str, fovs: list[float], minutes: float, data: Path) -> None:
-    from predictors.train import TrainConfig, checkpoint_meta, train
+    from predictors.checkpoints import checkpoint_meta
+    from predictors.train import TrainConfig, train
 
     print(f"\nFoV sweep on {scene} (validation split, {minutes} min per run, TrainConfig defaults)")
     for fov in fovs:
-        out = Path(f"/tmp/fov_{scene}_{int(fov)}.pt")
+        out = Path(tempfile.gettempdir()) / f"fov_{scene}_{int(fov)}.pt"
         cfg = TrainConfig(
             model="s-cgru",
             scene=scene,

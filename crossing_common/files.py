@@ -47,3 +47,38 @@ def write_bytes_atomic(path: str | os.PathLike[str], data: bytes) -> None:
     """Write `data` to `path` atomically."""
     with atomic_output(path) as tmp:
         tmp.write_bytes(data)
+
+
+class ForeignFileError(OSError):
+    """An output path holds a file that the tool did not write; the message names it."""
+
+
+def check_replaceable_file(path: str | os.PathLike[str], heads: tuple[bytes, ...], what: str) -> None:
+    r"""Refuse to overwrite an existing `path` unless it starts like a file the tool writes.
+
+    `heads` are the magic bytes of the tool's own output kind (e.g. ``b"RRF2"`` for a rerun recording,
+    ``b"\x89PNG"`` for a PNG); a missing file, or one starting with any of them, may be replaced. A
+    ``b"?"`` byte in a head matches any byte (MP4's ``????ftyp``).
+
+    Raises:
+        ForeignFileError: `path` is not a regular file, or it does not look like `what`.
+    """
+    p = Path(path)
+    if not (p.exists() or p.is_symlink()):
+        return
+    if not p.is_file() or p.is_symlink():
+        raise ForeignFileError(f"--out {str(p)!r}: exists and is not a regular file; not replaced")
+    try:
+        with p.open("rb") as fh:
+            start = fh.read(max((len(h) for h in heads), default=0))
+    except OSError as exc:
+        raise ForeignFileError(f"--out {str(p)!r}: cannot read it ({exc.strerror or exc})") from None
+
+    def matches(head: bytes) -> bool:
+        return len(start) >= len(head) and all(h in (ord("?"), b) for h, b in zip(head, start, strict=False))
+
+    if not any(matches(h) for h in heads):
+        raise ForeignFileError(
+            f"--out {str(p)!r}: exists and is not {what}, so this tool did not write it; not replaced"
+            " (move it or choose another name)"
+        )

@@ -11,6 +11,7 @@ Change logs:
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping
 from dataclasses import replace
@@ -72,6 +73,12 @@ def acceleration_to_action(acceleration: np.ndarray | float, ego: EgoConfig) -> 
     return np.clip(u, -1.0, 1.0).astype(np.float32)
 
 
+def _scalar_acceleration(action: float, ego: EgoConfig) -> float:
+    """`action_to_acceleration` for one finite float, without numpy (the same float64 arithmetic)."""
+    u = -1.0 if action < -1.0 else (1.0 if action > 1.0 else action)
+    return u * ego.max_acceleration if u >= 0 else u * ego.max_deceleration
+
+
 def check_action(action: Any) -> float:
     """The one real, finite number in `action` (a float, or an array of shape () or (1,)).
 
@@ -82,6 +89,10 @@ def check_action(action: Any) -> float:
     Raises:
         ValueError: for anything that is not one finite real number.
     """
+    if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f":
+        value = float(action[0])  # the common case, without building a new array
+        if math.isfinite(value):
+            return value
     wanted = "one finite real number (a float or an array of shape (1,)); values outside [-1, 1] are clipped"
     arr = np.asarray(action) if not isinstance(action, (str, bytes)) else None
     if arr is None or arr.dtype.kind not in "iuf" or arr.shape not in ((), (1,)):
@@ -104,7 +115,8 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
     (presence, position relative to the ego, world-frame velocity, on-crossing / waiting / on-road flags;
     the ego's heading is +x, so the frames differ by a translation only) with each slot's
     0.4 s position history, and M vehicle slots. Reward terms are reported in `info["rewards"]`; the
-    world's ground truth (for metrics only) in `info["ground_truth"]`.
+    world's ground truth (for metrics only) in `info["ground_truth"]`, with the step's safety quantities,
+    computed once for the reward and reused by `EpisodeMetrics`, attached as its `safety`.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}  # noqa: RUF012 - Gymnasium API
@@ -168,7 +180,7 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
         """Apply the ego acceleration for one `dt`."""
         if self.world is None:
             raise RuntimeError("call reset() before step()")
-        accel = float(action_to_acceleration(check_action(action), self.scenario.ego))
+        accel = _scalar_acceleration(check_action(action), self.scenario.ego)
         world = self.world
         x_before = world.traffic.x[0]
         world.step(accel)

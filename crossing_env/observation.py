@@ -7,29 +7,162 @@ enter the observation; they stay in the ground truth for evaluation.
 Frame: the ego's heading is +x, so relative positions are world positions minus the ego's centre.
 Pedestrians hidden behind a parked vehicle (line of sight from the ego's centre) or beyond the
 perception range (halved at night) are not observed.
+
+Layout: the dict keys are the ``*_KEY`` constants (`BASE_KEYS` from the env, `WRAPPER_KEYS` from the
+predictor wrappers) and the columns of each array are named by `EgoColumn`, `PedestrianColumn`,
+`VehicleColumn` and `PointColumn` (x, y of history and path points). Readers index by these names, never
+by number (``tests/test_observation_columns.py`` checks it): ``obs[PEDESTRIANS_KEY][:, PedestrianColumn.VX]``.
 """
 
 from __future__ import annotations
 
 import math
+from enum import IntEnum
+from typing import Final
 
 import numpy as np
 from gymnasium import spaces
 from numba import njit
 
+from crossing_common.cadence import HISTORY_INTERVAL
 from crossing_env.types import CrossingObs, FloatArray
 from scenarios.config import ObservationConfig, ScenarioConfig
 
-EGO_FEATURES = (
-    "speed",
-    "acceleration",
-    "distance_to_stop_line",
-    "distance_past_crossing",
-    "car_green",
-    "zebra",
+__all__ = [
+    "BASE_KEYS",
+    "CROSSING_INTENTION_KEY",
+    "CROSSING_INTENT_KEY",
+    "EGO_FEATURES",
+    "EGO_KEY",
+    "HISTORY_INTERVAL",
+    "OBSERVATION_KEYS",
+    "PEDESTRIANS_KEY",
+    "PEDESTRIAN_FEATURES",
+    "PEDESTRIAN_HISTORY_KEY",
+    "POSITION_BOUND",
+    "PREDICTED_PATHS_KEY",
+    "PREDICTED_SAMPLES_KEY",
+    "VEHICLES_KEY",
+    "VEHICLE_FEATURES",
+    "VELOCITY_BOUND",
+    "WAITING_DISTANCE",
+    "WAITING_SPEED",
+    "WRAPPER_KEYS",
+    "EgoColumn",
+    "ObservationBuilder",
+    "PedestrianColumn",
+    "PointColumn",
+    "VehicleColumn",
+    "observation_space",
+]
+
+# Keys of the observation dict. The env fills the first four; the predictor wrappers add the others.
+EGO_KEY: Final = "ego"
+"""(6,) the ego's own state, columns `EgoColumn`."""
+PEDESTRIANS_KEY: Final = "pedestrians"
+"""(K, 8) one row per pedestrian slot (padded, by relevance), columns `PedestrianColumn`."""
+PEDESTRIAN_HISTORY_KEY: Final = "pedestrian_history"
+"""(K, H, 2) each slot's last H positions, `HISTORY_INTERVAL` apart, oldest first; columns `PointColumn`."""
+VEHICLES_KEY: Final = "vehicles"
+"""(M, 7) one row per background vehicle slot (padded, nearest first), columns `VehicleColumn`."""
+CROSSING_INTENTION_KEY: Final = "crossing_intention"
+"""(K,) added by the intention wrappers: P(pedestrian on the road ahead of the ego within the horizon)."""
+CROSSING_INTENT_KEY: Final = "crossing_intent"
+"""(K,) added by the oracle intention: P(the pedestrian means to cross at all)."""
+PREDICTED_PATHS_KEY: Final = "predicted_paths"
+"""(K, T, 2) added by the trajectory wrappers: most-likely future positions, `HISTORY_INTERVAL` apart, from
+one interval ahead; columns `PointColumn`."""
+PREDICTED_SAMPLES_KEY: Final = "predicted_samples"
+"""(K, S, T, 2) added by the trajectory wrapper with samples: sampled futures; columns `PointColumn`."""
+BASE_KEYS: Final = (EGO_KEY, PEDESTRIANS_KEY, PEDESTRIAN_HISTORY_KEY, VEHICLES_KEY)
+"""The keys of the bare env's observation."""
+WRAPPER_KEYS: Final = (
+    CROSSING_INTENTION_KEY,
+    CROSSING_INTENT_KEY,
+    PREDICTED_PATHS_KEY,
+    PREDICTED_SAMPLES_KEY,
 )
-PEDESTRIAN_FEATURES = ("presence", "dx", "dy", "vx", "vy", "on_crossing", "waiting", "on_road")
-VEHICLE_FEATURES = ("presence", "dx", "dy", "vx", "vy", "length", "width")
+"""The keys the predictor wrappers add."""
+OBSERVATION_KEYS: Final = BASE_KEYS + WRAPPER_KEYS
+"""Every key an observation may hold."""
+
+
+# The compiled kernels below index by these names: they stay in this file, so that editing them also
+# refreshes numba's disk cache of the kernels (which tracks only the kernel's own file).
+
+
+class EgoColumn(IntEnum):
+    """Entries of ``obs[EGO_KEY]`` (last axis)."""
+
+    SPEED = 0
+    """Ego speed (m/s)."""
+    ACCELERATION = 1
+    """Ego acceleration (m/s²)."""
+    DISTANCE_TO_STOP_LINE = 2
+    """Ego front to the stop line (m; negative once past it)."""
+    DISTANCE_PAST_CROSSING = 3
+    """Ego rear minus the crossing's far edge (m; negative before it is cleared)."""
+    CAR_GREEN = 4
+    """1 unless a pedestrian signal shows the pedestrians green."""
+    ZEBRA = 5
+    """1 at a zebra crossing."""
+
+
+class PedestrianColumn(IntEnum):
+    """Columns of ``obs[PEDESTRIANS_KEY]`` (last axis); positions and velocities in the ego frame."""
+
+    PRESENCE = 0
+    """1 for an observed pedestrian, 0 for a padding slot (whose other columns are 0)."""
+    DX = 1
+    """x relative to the ego's centre (m, along the ego's heading)."""
+    DY = 2
+    """y relative to the ego's centre (m, to the ego's left)."""
+    VX = 3
+    """Velocity along x (m/s)."""
+    VY = 4
+    """Velocity along y (m/s)."""
+    ON_CROSSING = 5
+    """1 on the marked crossing."""
+    WAITING = 6
+    """1 standing (below `WAITING_SPEED`) off the road within `WAITING_DISTANCE` of the kerb."""
+    ON_ROAD = 7
+    """1 on the carriageway."""
+
+
+class VehicleColumn(IntEnum):
+    """Columns of ``obs[VEHICLES_KEY]`` (last axis); positions and velocities in the ego frame."""
+
+    PRESENCE = 0
+    """1 for an observed vehicle, 0 for a padding slot."""
+    DX = 1
+    """x of the vehicle's centre relative to the ego's centre (m)."""
+    DY = 2
+    """y relative to the ego's centre (m)."""
+    VX = 3
+    """Velocity along x (m/s; negative for oncoming traffic)."""
+    VY = 4
+    """Velocity along y (m/s; 0: vehicles keep their lane)."""
+    LENGTH = 5
+    """Vehicle length (m)."""
+    WIDTH = 6
+    """Vehicle width (m)."""
+
+
+class PointColumn(IntEnum):
+    """Last axis of the point arrays: pedestrian history, predicted paths and predicted samples."""
+
+    X = 0
+    """x relative to the ego's centre (m)."""
+    Y = 1
+    """y relative to the ego's centre (m)."""
+
+
+EGO_FEATURES = tuple(column.name.lower() for column in EgoColumn)
+"""Names of the `EgoColumn` entries, in order."""
+PEDESTRIAN_FEATURES = tuple(column.name.lower() for column in PedestrianColumn)
+"""Names of the `PedestrianColumn` columns, in order."""
+VEHICLE_FEATURES = tuple(column.name.lower() for column in VehicleColumn)
+"""Names of the `VehicleColumn` columns, in order."""
 POSITION_BOUND = 500.0
 VELOCITY_BOUND = 60.0
 WAITING_SPEED = 0.3
@@ -49,10 +182,10 @@ def observation_space(config: ObservationConfig) -> spaces.Dict:
     veh_high = np.tile(np.array([1, pb, pb, vb, vb, 20, 5], dtype=np.float32), (m, 1))
     return spaces.Dict(
         {
-            "ego": spaces.Box(ego_low, ego_high, dtype=np.float32),
-            "pedestrians": spaces.Box(ped_low, ped_high, dtype=np.float32),
-            "pedestrian_history": spaces.Box(-pb, pb, shape=(k, h, 2), dtype=np.float32),
-            "vehicles": spaces.Box(veh_low, veh_high, dtype=np.float32),
+            EGO_KEY: spaces.Box(ego_low, ego_high, dtype=np.float32),
+            PEDESTRIANS_KEY: spaces.Box(ped_low, ped_high, dtype=np.float32),
+            PEDESTRIAN_HISTORY_KEY: spaces.Box(-pb, pb, shape=(k, h, len(PointColumn)), dtype=np.float32),
+            VEHICLES_KEY: spaces.Box(veh_low, veh_high, dtype=np.float32),
         }
     )
 
@@ -108,7 +241,7 @@ class ObservationBuilder:
             self._seen_id = np.full(peds.capacity, -1, dtype=np.int64)
             self._visible_steps = np.zeros(peds.capacity, dtype=np.int64)
         ped = np.zeros((cfg.max_pedestrians, len(PEDESTRIAN_FEATURES)), dtype=np.float32)
-        history = np.zeros((cfg.max_pedestrians, cfg.history_length, 2), dtype=np.float32)
+        history = np.zeros((cfg.max_pedestrians, cfg.history_length, len(PointColumn)), dtype=np.float32)
         occluders = tr.boxes(tr.parked & tr.active)
         _fill_pedestrian_slots(
             peds.position,
@@ -146,7 +279,7 @@ class ObservationBuilder:
             cfg.perception_range,
             veh,
         )
-        obs = {"ego": ego_obs, "pedestrians": ped, "pedestrian_history": history, "vehicles": veh}
+        obs = {EGO_KEY: ego_obs, PEDESTRIANS_KEY: ped, PEDESTRIAN_HISTORY_KEY: history, VEHICLES_KEY: veh}
         for key, value in obs.items():  # a guarantee, not a transformation: values should already fit
             low, high = self._bounds[key]
             if _clip_in_place(value.reshape(-1), low, high):
@@ -239,31 +372,32 @@ def _fill_pedestrian_slots(
         x, y, vx, vy = position[p, 0], position[p, 1], velocity[p, 0], velocity[p, 1]
         on_road = kerb_south < y < kerb_north
         kerb_dist = min(abs(y - kerb_south), abs(y - kerb_north))
-        ped[k, 0] = 1.0
-        ped[k, 1] = x - ex
-        ped[k, 2] = y - ey
-        ped[k, 3] = vx
-        ped[k, 4] = vy
-        ped[k, 5] = 1.0 if on_crossing[p] else 0.0  # the world's mask: never set without a zebra
-        ped[k, 6] = (
+        ped[k, PedestrianColumn.PRESENCE] = 1.0
+        ped[k, PedestrianColumn.DX] = x - ex
+        ped[k, PedestrianColumn.DY] = y - ey
+        ped[k, PedestrianColumn.VX] = vx
+        ped[k, PedestrianColumn.VY] = vy
+        # The world's mask: never set without a zebra.
+        ped[k, PedestrianColumn.ON_CROSSING] = 1.0 if on_crossing[p] else 0.0
+        ped[k, PedestrianColumn.WAITING] = (
             1.0
             if not on_road and kerb_dist < WAITING_DISTANCE and vx * vx + vy * vy < WAITING_SPEED**2
             else 0.0
         )
-        ped[k, 7] = 1.0 if on_road else 0.0
+        ped[k, PedestrianColumn.ON_ROAD] = 1.0 if on_road else 0.0
         first_seen = step_count - visible_steps[p] + 1
         seen = (last_sample - first_seen) // history_every + 1 if last_sample >= first_seen else 0
         first = length - min(seen, length)  # samples before this one were taken while hidden
         for t in range(length):
             if t >= first:
-                history[k, t, 0] = pool_history[p, t, 0] - ex
-                history[k, t, 1] = pool_history[p, t, 1] - ey
+                history[k, t, PointColumn.X] = pool_history[p, t, 0] - ex
+                history[k, t, PointColumn.Y] = pool_history[p, t, 1] - ey
             elif first < length:
-                history[k, t, 0] = pool_history[p, first, 0] - ex
-                history[k, t, 1] = pool_history[p, first, 1] - ey
+                history[k, t, PointColumn.X] = pool_history[p, first, 0] - ex
+                history[k, t, PointColumn.Y] = pool_history[p, first, 1] - ey
             else:
-                history[k, t, 0] = x - ex
-                history[k, t, 1] = y - ey
+                history[k, t, PointColumn.X] = x - ex
+                history[k, t, PointColumn.Y] = y - ey
 
 
 @njit(cache=True, nogil=True)
@@ -292,12 +426,12 @@ def _fill_vehicle_slots(
         i = order[k]
         if not np.isfinite(dist[i]):
             break
-        veh[k, 0] = 1.0
-        veh[k, 1] = x[i] - ex
-        veh[k, 2] = y[i] - ey
-        veh[k, 3] = speed[i] * direction[i]
-        veh[k, 5] = length[i]
-        veh[k, 6] = width[i]
+        veh[k, VehicleColumn.PRESENCE] = 1.0
+        veh[k, VehicleColumn.DX] = x[i] - ex
+        veh[k, VehicleColumn.DY] = y[i] - ey
+        veh[k, VehicleColumn.VX] = speed[i] * direction[i]
+        veh[k, VehicleColumn.LENGTH] = length[i]
+        veh[k, VehicleColumn.WIDTH] = width[i]
 
 
 @njit(cache=True, nogil=True)

@@ -217,7 +217,7 @@ class Traffic:
         if rate <= 0:
             return
         arrivals = self.rng.random(self.geometry.road.num_lanes) < rate
-        for lane in np.flatnonzero(arrivals):
+        for lane in arrivals.nonzero()[0]:
             direction = self.geometry.lane_direction[lane]
             entry = 0.0 if direction > 0 else self.geometry.road.length
             in_lane = self.active & (self.lane == lane) & ~self.parked

@@ -164,3 +164,24 @@ class GroundTruth:
         return True
 
     __hash__ = None  # mutable arrays inside: not hashable
+
+    @property
+    def safety(self) -> Any:
+        """The per-step safety quantities computed from this snapshot (a `crossing_env.safety.StepSafety`).
+
+        The env computes them once per step, for its reward, and attaches them here so that
+        `EpisodeMetrics` reuses them instead of computing them again. None for snapshots built elsewhere
+        (e.g. with `dataclasses.replace`). Derived data, not state: not a dataclass field, so it takes no
+        part in equality, digests or pickles.
+        """
+        return self.__dict__.get("_safety")
+
+    def attach_safety(self, safety: Any) -> None:
+        """Attach the step's safety quantities (see `safety`); the env calls this once per snapshot."""
+        object.__setattr__(self, "_safety", safety)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle the fields only (the attached safety quantities are derived data)."""
+        state = dict(self.__dict__)
+        state.pop("_safety", None)
+        return state

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from crossing_env.pedestrians.decisions import CrossingDecisionModel, GapAcceptance
+from crossing_env.pedestrians.crossing_decisions import CrossingDecisionModel, make_decision_model
 from crossing_env.pedestrians.population import CarSnapshot, PedestrianPopulation
 from crossing_env.pedestrians.transitions import WAITING
 from crossing_env.physics import PhysicsWorld
@@ -18,15 +18,6 @@ from crossing_env.road import RoadGeometry
 from crossing_env.traffic import Traffic
 from crossing_env.types import CollisionEvent, FloatArray, GroundTruth
 from scenarios.config import EnvConfig, ScenarioConfig
-
-
-def make_decision_model(scenario: ScenarioConfig) -> CrossingDecisionModel:
-    """The decision model a scenario asks for."""
-    if scenario.pedestrians.behaviour.decision_model == "qlb":
-        from crossing_env.pedestrians.behaviour import QuantumGapAcceptance
-
-        return QuantumGapAcceptance()
-    return GapAcceptance()
 
 
 class World:
@@ -180,43 +171,70 @@ class World:
     def ground_truth(self) -> GroundTruth:
         """A copy of the true state for metrics and recorders."""
         tr, peds = self.traffic, self.pedestrians
-        bg = np.flatnonzero(tr.active)
-        bg = bg[bg != 0]
-        act = np.flatnonzero(peds.active)
+        bg = tr.active[1:].nonzero()[0] + 1  # background vehicles: every active slot but the ego's
+        act = peds.active.nonzero()[0]
+        # Fancy indexing copies, so every array below is the snapshot's own.
+        bg_positions, bg_velocities, bg_sizes = _vehicle_rows(
+            bg, tr.x, tr.y, tr.speed, tr.direction, tr.length, tr.width
+        )
+        states = peds.state[act]
         return GroundTruth(
             time=round(self.time, 9),
             ego_position=self.ego_position,
             ego_velocity=np.array([tr.speed[0] * tr.direction[0], 0.0]),
             ego_acceleration=float(tr.acceleration[0]),
             ego_size=(float(tr.length[0]), float(tr.width[0])),
-            vehicle_ids=tr.ids[bg].copy(),
-            vehicle_positions=tr.positions()[bg],
-            vehicle_velocities=tr.velocities()[bg],
-            vehicle_sizes=np.column_stack((tr.length[bg], tr.width[bg])),
-            pedestrian_ids=peds.ids[act].copy(),
-            pedestrian_positions=peds.position[act].copy(),
-            pedestrian_velocities=peds.velocity[act].copy(),
-            pedestrian_radii=peds.radius[act].copy(),
-            pedestrian_states=peds.state[act].copy(),
-            intends_to_cross=peds.intends[act].copy(),
-            intent_decided_at=peds.intent_time[act].copy(),
-            is_bystander=peds.bystander[act].copy(),
+            vehicle_ids=tr.ids[bg],
+            vehicle_positions=bg_positions,
+            vehicle_velocities=bg_velocities,
+            vehicle_sizes=bg_sizes,
+            pedestrian_ids=peds.ids[act],
+            pedestrian_positions=peds.position[act],
+            pedestrian_velocities=peds.velocity[act],
+            pedestrian_radii=peds.radius[act],
+            pedestrian_states=states,
+            intends_to_cross=peds.intends[act],
+            intent_decided_at=peds.intent_time[act],
+            is_bystander=peds.bystander[act],
             on_crossing=self.ped_on_crossing[act],
             on_road=self.ped_on_road[act],
-            waiting=(peds.state[act] == WAITING),
+            waiting=(states == WAITING),
             legal=self.ped_legal[act],
             conflict_area=self.conflict_area,
             signal_pedestrian_green=self.geometry.pedestrian_green(self.time),
             collisions=tuple(self.collisions),
             events=tuple(peds.events),
             extras={
-                "phase": peds.phase[act].copy(),
-                "distracted": peds.distracted[act].copy(),
-                "jaywalker": peds.jaywalker[act].copy(),
-                "desired_speed": peds.base_speed[act].copy(),
+                "phase": peds.phase[act],
+                "distracted": peds.distracted[act],
+                "jaywalker": peds.jaywalker[act],
+                "desired_speed": peds.base_speed[act],
                 "background_collisions": tuple(self.background_collisions),
             },
         )
+
+
+@njit(cache=True, nogil=True)
+def _vehicle_rows(
+    slots: np.ndarray,
+    x: FloatArray,
+    y: FloatArray,
+    speed: FloatArray,
+    direction: FloatArray,
+    length: FloatArray,
+    width: FloatArray,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(k, 2) positions, velocities (speed · direction along x) and sizes of the vehicles in `slots`."""
+    k = slots.shape[0]
+    positions = np.empty((k, 2))
+    velocities = np.zeros((k, 2))
+    sizes = np.empty((k, 2))
+    for j in range(k):
+        i = slots[j]
+        positions[j, 0], positions[j, 1] = x[i], y[i]
+        velocities[j, 0] = speed[i] * direction[i]
+        sizes[j, 0], sizes[j, 1] = length[i], width[i]
+    return positions, velocities, sizes
 
 
 @njit(cache=True, nogil=True)

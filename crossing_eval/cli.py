@@ -15,9 +15,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from agents.sb3 import ModelFileError
 from crossing_common.cli import DefaultsHelpFormatter, int_at_least, positive_float
 from crossing_common.folders import OutputFolderError, StagedFolder
-from crossing_eval.grid import parse_grid, run_grid_command
+from crossing_eval.grid import GRID_MARKER, make_grid_tasks, parse_grid, write_grid_outputs
 from crossing_eval.outputs import write_outputs
 from crossing_eval.plugins import (
     PREDICTOR_NAMES,
@@ -26,27 +27,35 @@ from crossing_eval.plugins import (
     policy_spec,
     predictor_spec,
 )
-from crossing_eval.report import format_table, summarise
+from crossing_eval.provenance import provenance, trajectory_predictors
+from crossing_eval.report import scenario_labels
 from crossing_eval.runners import (
     DEFAULT_RAY_TIMEOUT,
     EpisodeFailed,
     RayConnectionError,
+    RunInterrupted,
     default_workers,
     run_tasks,
 )
-from crossing_eval.tables import scenario_labels
-from crossing_eval.tasks import EpisodeRecord, make_tasks
+from crossing_eval.summary import format_table, summarise
+from crossing_eval.tasks import EpisodeRecord, EpisodeTask, make_tasks
+from rollout import build_policy, make_env
+from rollout.wrappers import DEFAULT_INTENTION, DEFAULT_PREDICTOR, WrapperError, intention_names
 from scenarios import ScenarioError, list_scenarios, load_scenario
 
 DEFAULT_EPISODES = 5
 """Episodes per (scenario, policy) in the default run: 8 scenarios x 5 seeds x 6 policies = 240 episodes."""
+MAX_EPISODES = 10_000
+"""Bound on ``--episodes``: the records of a run stay in memory until the tables are written."""
 DEFAULT_SEED = 2024
 """Base seed of the default run."""
 DEFAULT_OUT = "crossing-eval-results"
 """Default output folder (relative to the working directory)."""
+DEFAULT_GRID_OUT = "crossing-eval-grid"
+"""Default output folder of a `--grid` run (its own, so a grid never meets a plain run's folder)."""
 PREDICTOR_CHOICES = PREDICTOR_NAMES
-INTENTION_CHOICES = ("qlb", "classical", "none", "oracle")
-"""'oracle' is privileged (reads the ground truth: an upper bound for the value-of-prediction table)."""
+INTENTION_CHOICES = intention_names()
+"""`rollout.wrappers.INTENTION_WRAPPERS` and 'none'; 'oracle' is privileged (an upper bound)."""
 GRID_POLICIES = ("yielding", "predictive_yielding")
 """Policies of a `--grid` run unless `--policies` says otherwise."""
 
@@ -56,6 +65,13 @@ def _int(text: str) -> int:
         return int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+
+
+def _episodes(text: str) -> int:
+    value = int_at_least(1)(text)
+    if value > MAX_EPISODES:
+        raise argparse.ArgumentTypeError(f"expected at most {MAX_EPISODES:,} episodes, got {text!r}")
+    return value
 
 
 def _names(text: str) -> list[str]:
@@ -87,9 +103,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument(
         "--episodes",
-        type=int_at_least(1),
+        type=_episodes,
         default=DEFAULT_EPISODES,
-        help="episodes (seeds) per scenario and policy",
+        help=f"episodes (seeds) per scenario and policy, at most {MAX_EPISODES:,} (every episode's record,"
+        " a few kB, is kept in memory until the tables are written)",
     )
     parser.add_argument("--seed", type=_int, default=DEFAULT_SEED, help="base seed")
     parser.add_argument(
@@ -101,8 +118,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--out",
         type=Path,
-        default=Path(DEFAULT_OUT),
-        help="output folder; replaced whole at the end of the run (an earlier run's folder or an empty one)",
+        default=None,
+        help=f"output folder, replaced whole at the end of the run (an earlier run's folder or an empty one);"
+        f" default {DEFAULT_OUT}, or {DEFAULT_GRID_OUT} with --grid",
     )
     parser.add_argument(
         "--backend",
@@ -125,14 +143,14 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--predictor",
         type=_predictor,
-        default="s-cgru",
+        default=DEFAULT_PREDICTOR,
         help="trajectory predictor wrapper for policies that use predictions: "
         f"{', '.join(PREDICTOR_CHOICES)} or a checkpoint file",
     )
     parser.add_argument(
         "--intention",
         choices=INTENTION_CHOICES,
-        default="qlb",
+        default=DEFAULT_INTENTION,
         help="crossing-intention wrapper for policies that use predictions",
     )
     parser.add_argument(
@@ -199,6 +217,8 @@ def _parse(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> argpa
         if args.policies is None:
             args.policies = list(GRID_POLICIES)
     args.policies = _resolve_policies(parser, args.policies)
+    if args.out is None:
+        args.out = Path(DEFAULT_GRID_OUT if args.grid is not None else DEFAULT_OUT)
     if args.address is not None and args.backend != "ray":
         parser.error(f"argument --address: {args.address!r} needs --backend ray")
     if args.out.exists() and not args.out.is_dir():
@@ -224,6 +244,12 @@ def _settings(args: argparse.Namespace, records: Sequence[EpisodeRecord]) -> dic
         "predictor": args.predictor,
         "intention": args.intention,
         "predictors_used": sorted({p for r in records for p in r.predictors}),
+        "provenance": provenance(
+            args.scenarios,
+            args.policies,
+            trajectory_predictors([p for r in records for p in r.predictors]),
+            args.argv,
+        ),
     }
 
 
@@ -241,8 +267,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
         return compare_main(argv[1:])
     args = _parse(build_parser(), argv)
-    if args.grid is not None:
-        return run_grid_command(args)
     # Every scenario file is read and validated before the first episode (and before any worker starts).
     try:
         for name in args.scenarios:
@@ -250,24 +274,63 @@ def main(argv: Sequence[str] | None = None) -> int:
         labels = scenario_labels(args.scenarios)
     except ScenarioError as exc:
         return _fail(str(exc))
+    tasks = _tasks(args)
     try:
-        staged = StagedFolder(args.out, marker="results.json")
+        _preflight(args, tasks)
+    except (WrapperError, ModelFileError, ValueError, TypeError, OSError) as exc:
+        return _fail(str(exc))
+    try:
+        staged = StagedFolder(
+            args.out, marker=GRID_MARKER if args.grid is not None else "results.json", tool="crossing-eval"
+        )
     except OutputFolderError as exc:
         return _fail(f"argument --out: {exc}")
     try:
-        return _run(args, labels, staged)
+        return _run(args, labels, staged, tasks)
     finally:
         staged.discard()  # a no-op after a commit; drops half-written output on any error or Ctrl-C
 
 
-def _run(args: argparse.Namespace, labels: dict[str, str], staged: StagedFolder) -> int:
-    tasks = make_tasks(
-        args.scenarios, args.policies, args.episodes, args.seed, args.predictor, args.intention
-    )
+def _tasks(args: argparse.Namespace) -> list[EpisodeTask]:
+    """The episodes of a plain run or of a `--grid`."""
+    if args.grid is not None:
+        return make_grid_tasks(args.scenarios, args.policies, args.episodes, args.seed, args.grid)
+    return make_tasks(args.scenarios, args.policies, args.episodes, args.seed, args.predictor, args.intention)
+
+
+def _preflight(args: argparse.Namespace, tasks: Sequence[EpisodeTask]) -> None:
+    """Build every wrapper combination and every policy once, here, before any worker starts.
+
+    A predictor, a policy plug-in or a model file that cannot be loaded then stops the run with one line
+    (exit 2) before the first episode, instead of failing in every worker.
+    """
+    scenario = args.scenarios[0]
+    for intention, predictor in sorted({(t.intention, t.predictor) for t in tasks}):
+        env, _ = make_env(scenario, intention=intention, predictor=predictor)
+        env.close()
+    env, _ = make_env(scenario)
+    try:
+        for policy in args.policies:
+            try:
+                build_policy(policy, env)
+            except (ValueError, TypeError, OSError) as exc:
+                raise type(exc)(f"policy {policy!r} cannot be built: {exc}") from exc
+    finally:
+        env.close()
+
+
+def _run(
+    args: argparse.Namespace, labels: dict[str, str], staged: StagedFolder, tasks: Sequence[EpisodeTask]
+) -> int:
+    """Run the tasks of a plain run or a `--grid` (the same checks, staging, errors and timeouts)."""
+    if args.grid is not None:
+        prefix = f"crossing-eval --grid: {len(args.grid.combinations())} combination(s) x "
+    else:
+        prefix = "crossing-eval: "
     print(
-        f"crossing-eval: {len(args.scenarios)} scenario(s) x {len(args.policies)} policies"
-        f" x {args.episodes} episode(s) = {len(tasks)} episodes, {args.workers} worker(s),"
-        f" backend {args.backend}",
+        f"{prefix}{len(args.scenarios)} scenario(s) x"
+        f" {len(args.policies)} policies x {args.episodes} episode(s) = {len(tasks)} episodes,"
+        f" {args.workers} worker(s), backend {args.backend}",
         file=sys.stderr,
     )
     t0 = time.perf_counter()
@@ -280,14 +343,19 @@ def _run(args: argparse.Namespace, labels: dict[str, str], staged: StagedFolder)
             show_progress=not args.no_progress,
             ray_timeout=args.ray_timeout,
         )
-    except (ScenarioError, EpisodeFailed, RayConnectionError) as exc:
+    except (ScenarioError, EpisodeFailed, RayConnectionError, WrapperError, ModelFileError) as exc:
+        # WrapperError: a predictor that cannot be loaded (missing module, corrupt or tampered weights).
         return _fail(str(exc))
-    except ValueError as exc:
-        # predictors.checkpoints.CheckpointError (a ValueError; imported lazily with torch): bad weights.
-        if type(exc).__name__ != "CheckpointError":
-            raise
-        return _fail(str(exc))
+    except RunInterrupted as exc:  # SIGINT / SIGTERM: workers stopped, the previous output untouched
+        print(f"crossing-eval: {exc}", file=sys.stderr)
+        return exc.exit_code
     wall = time.perf_counter() - t0
+    if args.grid is not None:
+        table, files = write_grid_outputs(records, args, staged.path)
+        staged.commit()
+        print(table)
+        print(f"{len(records)} episodes in {wall:.1f} s; wrote {', '.join(files)} to {args.out}/")
+        return 0
     summary = summarise(records)
     settings = _settings(args, records)
     settings["scenario_names"] = labels

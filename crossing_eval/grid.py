@@ -4,14 +4,12 @@
 policy that uses predictors once per combination, each on the same episodes: an episode's seed depends
 only on (base seed, scenario, episode index) (`crossing_eval.tasks.episode_seed`), never on the policy or
 the predictors, so the rows differ only by what the car was told. Policies that use no predictors run
-once, as the row ``none / none``. The table and its paired statistics are `crossing_eval.value`.
+once, as the row ``none / none``. The table and its paired statistics are `crossing_eval.prediction_value`.
 """
 
 from __future__ import annotations
 
 import itertools
-import sys
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -96,26 +94,14 @@ def group_rows(records: Sequence[EpisodeRecord]) -> dict[tuple[str, str, str], l
     return rows
 
 
-def run_grid_command(args: Any) -> int:
-    """`crossing-eval --grid ...`: run the grid, print and write the value-of-prediction table."""
-    # Imported here: the table needs scipy and matplotlib, which a plain `crossing-eval` does not.
-    from crossing_eval.runners import run_tasks
-    from crossing_eval.value import value_table, write_value_outputs
+GRID_MARKER = "value_of_prediction.csv"
+"""The file that marks a folder as an earlier grid run's output (the staged folder may replace it)."""
 
+
+def grid_settings(args: Any) -> dict[str, Any]:
+    """What determines a grid's numbers (stored beside the table): the command, scenarios, seeds, axes."""
     spec: GridSpec = args.grid
-    tasks = make_grid_tasks(args.scenarios, args.policies, args.episodes, args.seed, spec)
-    print(
-        f"crossing-eval --grid: {len(spec.combinations())} combination(s) x {len(args.scenarios)} scenario(s)"
-        f" x {args.episodes} episode(s) per policy ({', '.join(args.policies)}) = {len(tasks)} episodes,"
-        f" {args.workers} worker(s)",
-        file=sys.stderr,
-    )
-    t0 = time.perf_counter()
-    records = run_tasks(tasks, args.workers, args.backend, args.address, show_progress=not args.no_progress)
-    wall = time.perf_counter() - t0
-    rows = group_rows(records)
-    table = value_table(rows, seed=args.seed)
-    settings = {
+    return {
         "command": "crossing-eval " + " ".join(args.argv) if args.argv else "crossing-eval",
         "scenarios": list(args.scenarios),
         "policies": list(args.policies),
@@ -124,13 +110,30 @@ def run_grid_command(args: Any) -> int:
         "intentions": list(spec.intentions),
         "predictors": list(spec.predictors),
     }
-    files = write_value_outputs(table, settings, args.out)
-    files.append(_write_episodes(records, args.out))
-    from crossing_eval.value import format_markdown
 
-    print(format_markdown(table, settings))
-    print(f"{len(records)} episodes in {wall:.1f} s; wrote {', '.join(files)} to {args.out}/")
-    return 0
+
+def write_grid_outputs(records: Sequence[EpisodeRecord], args: Any, out: Path) -> tuple[str, list[str]]:
+    """The value-of-prediction table (markdown, CSV, plot), ``grid_episodes.csv`` and ``provenance.json``.
+
+    Returns the markdown table and the file names.
+    """
+    import json
+
+    from crossing_common.files import write_text_atomic
+
+    # Imported here: the table needs scipy and matplotlib, which a plain `crossing-eval` does not.
+    from crossing_eval.prediction_value import format_markdown, value_table, write_value_outputs
+    from crossing_eval.provenance import provenance, trajectory_predictors
+
+    table = value_table(group_rows(records), seed=args.seed)
+    settings = grid_settings(args)
+    files = write_value_outputs(table, settings, out)
+    files.append(_write_episodes(records, out))
+    labels = [p for r in records for p in r.predictors]
+    prov = provenance(args.scenarios, args.policies, trajectory_predictors(labels), args.argv)
+    write_text_atomic(out / "provenance.json", json.dumps(prov, indent=1, sort_keys=True) + "\n")
+    files.append("provenance.json")
+    return format_markdown(table, settings), files
 
 
 def _write_episodes(records: Sequence[EpisodeRecord], out: Path) -> str:

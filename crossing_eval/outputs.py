@@ -4,7 +4,7 @@
   episode's metrics (`crossing_env.safety.EpisodeResult.as_dict`);
 - ``episodes.csv`` (one row per episode), ``summary.csv`` (one row per policy and "overall") and
   ``per_scenario.csv`` (one row per scenario and policy); missing or undefined values are empty cells;
-- ``report.md`` (pooled and per-scenario tables, `crossing_eval.tables`) and ``table.txt`` (the printed
+- ``report.md`` (pooled and per-scenario tables, `crossing_eval.report`) and ``table.txt`` (the printed
   table);
 - ``safety_vs_efficiency.png`` and ``min_ttc.png`` (ECDF per policy; matplotlib, Agg backend);
 - ``worst/*.json``: episode logs of the worst episodes (collisions first, then lowest min TTC; the five
@@ -20,6 +20,7 @@ import csv
 import io
 import json
 import math
+import re
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -28,8 +29,8 @@ import numpy as np
 
 from crossing_common.files import write_bytes_atomic
 from crossing_env.safety import json_safe
-from crossing_eval.report import format_table
-from crossing_eval.tables import csv_cell, per_scenario_rows, report_markdown, scenario_labels
+from crossing_eval.report import csv_cell, per_scenario_rows, report_markdown, scenario_labels
+from crossing_eval.summary import format_table
 from crossing_eval.tasks import EpisodeRecord
 from crossing_replay.episode_log import save_episode_log
 
@@ -256,13 +257,24 @@ def worst_records(records: Sequence[EpisodeRecord], n: int = WORST_EPISODES) -> 
     return chosen
 
 
+def file_slug(text: str) -> str:
+    """`text` as one safe file-name part: a policy spec's path becomes its stem, odd characters '-'.
+
+    ``sb3:/runs/a/model.zip`` → ``sb3-model``, ``pkg.mod:Policy`` → ``pkg.mod-Policy``; names stay.
+    """
+    kind, sep, rest = text.partition(":")
+    if sep and ("/" in rest or "\\" in rest or rest.endswith(".zip")):
+        text = f"{kind}-{Path(rest.replace(chr(92), '/')).stem}"
+    return re.sub(r"[^A-Za-z0-9_.-]+", "-", text).strip(".-") or "policy"
+
+
 def save_worst(records: Sequence[EpisodeRecord], out: Path, n: int = WORST_EPISODES) -> list[str]:
     """Write replayable logs of the worst episodes into ``out/worst``; returns the file names."""
     folder = out / "worst"
     names = []
     for rank, rec in enumerate(worst_records(records, n)):
         t = rec.task
-        name = f"{rank:02d}_{Path(t.scenario).stem}_{t.policy}_ep{t.episode}.json"
+        name = f"{rank:02d}_{file_slug(Path(t.scenario).stem)}_{file_slug(t.policy)}_ep{t.episode}.json"
         folder.mkdir(parents=True, exist_ok=True)
         save_episode_log(
             folder / name,

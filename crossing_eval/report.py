@@ -1,121 +1,114 @@
-"""Summaries of a run (per policy, per scenario and policy, overall) and the printed table."""
+"""The per scenario x policy report: ``report.md`` (pooled and per-scenario tables) and its CSV rows.
+
+The printed table pools every scenario per policy; the scenario x policy numbers are what a reader
+compares policies on, so they get their own table. Custom scenario files are named by the scenario's
+``name`` field, not their path. Missing values are one convention everywhere: "-" in text and Markdown,
+an empty cell in CSV, ``null`` in JSON.
+"""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
-from crossing_env.safety import EpisodeResult
-from crossing_eval.statistics import aggregate, censored_delay
-from crossing_eval.tasks import EpisodeRecord
+from crossing_eval.summary import TABLE_COLUMNS, _row
 from scenarios import load_scenario
 
-TABLE_COLUMNS = (
-    ("policy", "policy"),
-    ("n", "episodes"),
-    ("collision rate [95% CI]", None),
-    ("minTTC p5/p50 s", None),
-    ("PET p5 s", "pet_pedestrian_first_p5"),
-    ("DRAC mean", "drac_crossing_mean"),
-    ("hard brakes/ep", "hard_brakes_per_episode"),
-    ("yield compl. (n)", None),
-    ("pass rate", "pass_rate"),
-    ("delay s (censored)", "censored_mean_delay"),
+SCENARIO_CSV_FIELDS = (
+    "episodes",
+    "collision_rate",
+    "pedestrian_collision_rate",
+    "min_ttc_p5",
+    "min_ttc_p50",
+    "serious_conflict_rate",
+    "pet_pedestrian_first_p5",
+    "drac_crossing_mean",
+    "hard_brakes_per_episode",
+    "yield_obligations",
+    "yield_compliance",
+    "pass_rate",
+    "mean_delay",
+    "censored_mean_delay",
+    "censored_episodes",
 )
-"""Table columns: (header, `aggregate` key, or None where the cell combines several keys)."""
+"""Columns of ``per_scenario.csv`` after scenario and policy (keys of the aggregates), then the CI."""
 
 
-def summarise(records: Sequence[EpisodeRecord]) -> dict[str, Any]:
-    """Per policy, per (scenario, policy) and overall aggregates (`crossing_eval.statistics.aggregate`).
-
-    Each aggregate also holds the censored delay (`crossing_eval.statistics.censored_delay`): episodes
-    that never pass count at their scenario's duration.
-    """
-    horizons = {s: load_scenario(s).duration for s in {r.task.scenario for r in records}}
-    results = [EpisodeResult.from_dict(r.result) for r in records]
-    by_policy: dict[str, list[Any]] = {}
-    by_pair: dict[str, list[Any]] = {}
-    for rec, res in zip(records, results, strict=True):
-        by_policy.setdefault(rec.task.policy, []).append((res, horizons[rec.task.scenario]))
-        by_pair.setdefault(f"{rec.task.scenario}/{rec.task.policy}", []).append(
-            (res, horizons[rec.task.scenario])
-        )
-    every = [(res, horizons[rec.task.scenario]) for rec, res in zip(records, results, strict=True)]
-    return {
-        "per_policy": {k: _aggregate(v) for k, v in by_policy.items()},
-        "per_scenario_policy": {k: _aggregate(v) for k, v in sorted(by_pair.items())},
-        "overall": _aggregate(every),
-    }
+def scenario_labels(scenarios: Sequence[str]) -> dict[str, str]:
+    """Display name of each scenario argument: its ``name`` field, or the argument when names clash."""
+    names = {s: load_scenario(s).name or Path(s).stem for s in scenarios}
+    counts: dict[str, int] = {}
+    for n in names.values():
+        counts[n] = counts.get(n, 0) + 1
+    return {s: (n if counts[n] == 1 else s) for s, n in names.items()}
 
 
-def _aggregate(pairs: Sequence[tuple[EpisodeResult, float]]) -> dict[str, Any]:
-    results = [r for r, _ in pairs]
-    agg = aggregate(results)
-    agg.update(
-        censored_delay(
-            [r.delay for r in results], [r.passed_crossing for r in results], [h for _, h in pairs]
-        )
-    )
-    return agg
-
-
-def _fmt(x: Any, digits: int = 2) -> str:
+def csv_cell(x: Any) -> Any:
+    """One CSV cell: missing or undefined (None, nan) → empty, ±inf → "inf"/"-inf", else the value."""
     if x is None or (isinstance(x, float) and math.isnan(x)):
-        return "-"
+        return ""
     if isinstance(x, float) and math.isinf(x):
-        return "inf"
-    if isinstance(x, float):
-        return f"{x:.{digits}f}"
-    return str(x)
+        return "inf" if x > 0 else "-inf"
+    return x
 
 
-def _row(name: str, agg: dict[str, Any]) -> list[str]:
-    """The cells of one table row, in `TABLE_COLUMNS` order."""
-    lo, hi = agg["collision_ci95"]
-    comp = agg["yield_compliance"]
-    return [
-        name,
-        str(agg["episodes"]),
-        f"{agg['collision_rate']:.3f} [{lo:.3f}, {hi:.3f}]",
-        f"{_fmt(agg['min_ttc_p5'])}/{_fmt(agg['min_ttc_p50'])}",
-        _fmt(agg["pet_pedestrian_first_p5"]),
-        _fmt(agg["drac_crossing_mean"]),
-        _fmt(agg["hard_brakes_per_episode"]),
-        f"{_fmt(comp, 3)} ({agg['yield_obligations']})",
-        _fmt(agg["pass_rate"]),
-        _fmt(agg["censored_mean_delay"]),
-    ]
+def per_scenario_rows(
+    summary: Mapping[str, Any], labels: Mapping[str, str], policies: Sequence[str]
+) -> tuple[list[str], list[list[Any]]]:
+    """Header and rows of ``per_scenario.csv``: one row per (scenario, policy), in label then policy order."""
+    header = ["scenario", "policy", *SCENARIO_CSV_FIELDS, "collision_ci95_low", "collision_ci95_high"]
+    rows = []
+    for scenario, policy, agg in _pairs(summary, labels, policies):
+        lo, hi = agg["collision_ci95"]
+        rows.append([scenario, policy, *(csv_cell(agg[k]) for k in SCENARIO_CSV_FIELDS), lo, hi])
+    return header, rows
 
 
-def format_table(summary: dict[str, Any], policies: Sequence[str]) -> str:
-    """Fixed-width text table: one row per policy plus 'overall', then the world-health line."""
-    rows = [[c for c, _ in TABLE_COLUMNS]]
-    entries = [(p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]]
-    entries.append(("overall", summary["overall"]))
-    rows.extend(_row(name, agg) for name, agg in entries)
-    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-    lines = []
-    for i, row in enumerate(rows):
-        lines.append(
-            "  ".join(
-                cell.ljust(w) if j == 0 else cell.rjust(w)
-                for j, (cell, w) in enumerate(zip(row, widths, strict=True))
-            )
-        )
-        if i == 0:
-            lines.append("  ".join("-" * w for w in widths))
-    lines.append(format_world_health(summary))
+def _pairs(
+    summary: Mapping[str, Any], labels: Mapping[str, str], policies: Sequence[str]
+) -> list[tuple[str, str, dict[str, Any]]]:
+    out = []
+    for key, agg in summary["per_scenario_policy"].items():
+        scenario, policy = key.rsplit("/", 1)
+        out.append((labels.get(scenario, scenario), policy, agg))
+    order = {p: i for i, p in enumerate(policies)}
+    return sorted(out, key=lambda t: (t[0], order.get(t[1], len(order)), t[1]))
+
+
+def _markdown(header: Sequence[str], rows: Sequence[Sequence[str]]) -> str:
+    esc = [[c.replace("|", "\\|") for c in r] for r in (header, *rows)]
+    lines = ["| " + " | ".join(esc[0]) + " |", "|" + "|".join("---" for _ in header) + "|"]
+    lines.extend("| " + " | ".join(r) + " |" for r in esc[1:])
     return "\n".join(lines)
 
 
-def format_world_health(summary: dict[str, Any]) -> str:
-    """One line on the world around the ego: background car–pedestrian contacts (the ego is not involved)."""
-    agg = summary["overall"]
-    lo, hi = agg["background_collision_ci95"]
-    return (
-        f"world health: {agg['background_collisions']} background car-pedestrian contact(s)"
-        f" ({agg['background_collisions_legal']} with a legal pedestrian) in {agg['episodes']} episodes;"
-        f" episodes with one {agg['background_collision_rate']:.3f} [{lo:.3f}, {hi:.3f}];"
-        f" max relative speed {_fmt(agg['background_collision_max_speed'])} m/s"
-    )
+def report_markdown(
+    summary: Mapping[str, Any],
+    policies: Sequence[str],
+    labels: Mapping[str, str],
+    settings: Mapping[str, Any],
+) -> str:
+    """``report.md``: the settings, the pooled table and one table per scenario (rows: policies)."""
+    header = [c for c, _ in TABLE_COLUMNS]
+    pooled = [_row(p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]]
+    pooled.append(_row("overall", summary["overall"]))
+    parts = [
+        "# crossing-eval report",
+        "",
+        f"{settings.get('episodes')} episode(s) per scenario and policy, base seed {settings.get('seed')},"
+        f" predictor {settings.get('predictor')}, intention {settings.get('intention')}.",
+        "Collision rates with 95% Wilson intervals; min TTC percentiles over episode minima; the delay"
+        " counts episodes that never pass at the scenario's duration (censored); '-' = undefined.",
+        "",
+        "## All scenarios pooled",
+        "",
+        _markdown(header, pooled),
+    ]
+    by_scenario: dict[str, list[list[str]]] = {}
+    for scenario, policy, agg in _pairs(summary, labels, policies):
+        by_scenario.setdefault(scenario, []).append(_row(policy, agg))
+    for scenario, rows in by_scenario.items():
+        parts += ["", f"## {scenario}", "", _markdown(header, rows)]
+    return "\n".join(parts) + "\n"

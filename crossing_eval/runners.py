@@ -6,20 +6,27 @@ returned, so the results never depend on ``workers`` or the backend.
 
 from __future__ import annotations
 
+import itertools
 import multiprocessing
 import os
 import pickle
+import signal
 import socket
 import sys
+import threading
+import time
 import traceback
-from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections.abc import Callable, Iterable, Iterator, Sized
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from contextlib import contextmanager
 from typing import Any
 
 from tqdm import tqdm
 
 from crossing_eval.tasks import EpisodeRecord, EpisodeTask, run_episode
 
+IN_FLIGHT_PER_WORKER = 2
+"""Tasks submitted at a time per worker (lazy submission keeps memory flat whatever ``--episodes`` is)."""
 DEFAULT_RAY_TIMEOUT = 30.0
 """Seconds to wait for a Ray cluster at ``--address`` before giving up with a message."""
 
@@ -69,8 +76,56 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+class RunInterrupted(Exception):
+    """The run was stopped by SIGINT or SIGTERM; pending work was cancelled and the workers stopped.
+
+    `exit_code` is the shell convention: 130 for SIGINT, 143 for SIGTERM.
+    """
+
+    def __init__(self, signum: int) -> None:
+        self.signum = signum
+        self.exit_code = 128 + signum
+        name = signal.Signals(signum).name
+        super().__init__(f"stopped by {name}: pending episodes cancelled, no output written")
+
+
+def _ignore_sigint() -> None:
+    """Worker initializer: Ctrl-C goes to the whole process group; only the parent handles it."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+@contextmanager
+def stop_signals() -> Iterator[None]:
+    """Turn SIGINT and SIGTERM into `RunInterrupted` in the main thread (handlers restored afterwards)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        raise RunInterrupted(signum)
+
+    old = {sig: signal.signal(sig, handler) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, h in old.items():
+            signal.signal(sig, h)
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """Cancel what has not started and stop the worker processes now (no orphans)."""
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        if proc.is_alive():
+            proc.terminate()
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        proc.join(timeout=5)
+        if proc.is_alive():
+            proc.kill()
+
+
 def _run_local(
-    tasks: Sequence[EpisodeTask], workers: int, progress: Callable[[], None]
+    tasks: Iterable[EpisodeTask], workers: int, progress: Callable[[], None]
 ) -> list[EpisodeRecord]:
     if workers <= 1:
         out = []
@@ -79,15 +134,32 @@ def _run_local(
             progress()
         return out
     records: list[EpisodeRecord] = []
+    todo = iter(tasks)
+    limit = IN_FLIGHT_PER_WORKER * workers
     # forkserver, not fork: a forked child of a process that has run torch ops can hang in torch's
     # thread pool, and the predictor wrappers run torch.
-    with ProcessPoolExecutor(
-        max_workers=workers, mp_context=multiprocessing.get_context("forkserver")
-    ) as pool:
-        futures = [pool.submit(run_episode_guarded, t) for t in tasks]
-        for fut in as_completed(futures):
-            records.append(fut.result())
-            progress()
+    pool = ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=multiprocessing.get_context("forkserver"),
+        initializer=_ignore_sigint,
+    )
+    try:
+        in_flight: set[Future[EpisodeRecord]] = set()
+        # Lazy submission: at most `limit` tasks wait in the pool, so memory stays flat however many there
+        # are; records are sorted afterwards, so the order of completion never shows in the results.
+        for t in itertools.islice(todo, limit):
+            in_flight.add(pool.submit(run_episode_guarded, t))
+        while in_flight:
+            done, in_flight = wait(in_flight, return_when=FIRST_COMPLETED)
+            for fut in done:
+                records.append(fut.result())
+                progress()
+            for t in itertools.islice(todo, limit - len(in_flight)):
+                in_flight.add(pool.submit(run_episode_guarded, t))
+    except BaseException:
+        _stop_pool(pool)
+        raise
+    pool.shutdown(wait=True)
     return records
 
 
@@ -121,7 +193,7 @@ def check_ray_address(address: str, timeout: float = DEFAULT_RAY_TIMEOUT) -> Non
 
 
 def _run_ray(
-    tasks: Sequence[EpisodeTask],
+    tasks: Iterable[EpisodeTask],
     address: str | None,
     workers: int,
     progress: Callable[[], None],
@@ -147,14 +219,24 @@ def _run_ray(
         else:
             check_ray_address(address, timeout)
             kwargs["address"] = address
-        ray.init(**kwargs)
+        try:
+            ray.init(**kwargs)
+        except Exception as exc:  # e.g. something listens there but is not Ray, or no local cluster
+            text = str(exc).strip().splitlines()
+            raise RayConnectionError(
+                f"cannot connect to a Ray cluster at {address or 'local'!r}"
+                f" ({text[-1] if text else type(exc).__name__})"
+            ) from None
         started = True
     try:
         remote = ray.remote(num_cpus=1)(run_episode_guarded)
-        pending = [remote.remote(t) for t in tasks]
+        todo = iter(tasks)
+        limit = IN_FLIGHT_PER_WORKER * max(1, workers)
+        pending = [remote.remote(t) for t in itertools.islice(todo, limit)]
         records: list[EpisodeRecord] = []
         while pending:
             done, pending = ray.wait(pending, num_returns=1)
+            pending.extend(remote.remote(t) for t in itertools.islice(todo, limit - len(pending)))
             try:
                 records.extend(ray.get(done))
             except ray.exceptions.RayTaskError as exc:
@@ -170,21 +252,63 @@ def _run_ray(
             ray.shutdown()
 
 
+HEARTBEAT_SECONDS = 30.0
+"""Without the progress bar, one line on stderr at most this often, so a long run is visibly alive."""
+
+
+class Heartbeat:
+    """Counts finished episodes and prints ``episodes: done/total`` at most every `interval` seconds."""
+
+    def __init__(self, total: int | None, interval: float = HEARTBEAT_SECONDS) -> None:
+        self.total = total
+        self.interval = interval
+        self.done = 0
+        self.start = self.last = time.monotonic()
+
+    def update(self, n: int = 1) -> None:
+        """One more episode finished (the progress callback's signature)."""
+        self.done += n
+        now = time.monotonic()
+        if now - self.last >= self.interval:
+            self.last = now
+            of = f"/{self.total}" if self.total is not None else ""
+            print(f"episodes: {self.done}{of} done, {now - self.start:.0f} s", file=sys.stderr, flush=True)
+
+    def close(self) -> None:
+        """Nothing to release (the bar's interface)."""
+
+
 def run_tasks(
-    tasks: Sequence[EpisodeTask],
+    tasks: Iterable[EpisodeTask],
     workers: int = 1,
     backend: str = "local",
     address: str | None = None,
     show_progress: bool = True,
     ray_timeout: float = DEFAULT_RAY_TIMEOUT,
+    total: int | None = None,
 ) -> list[EpisodeRecord]:
-    """Run every task and return the records sorted by (scenario, policy, episode)."""
-    bar = tqdm(total=len(tasks), desc="episodes", unit="ep", disable=not show_progress, file=sys.stderr)
+    """Run every task and return the records sorted by (scenario, policy, episode).
+
+    `tasks` may be a lazy iterable (then give `total` for the progress bar); at most
+    ``IN_FLIGHT_PER_WORKER * workers`` of them are submitted at a time.
+
+    Raises:
+        RunInterrupted: SIGINT or SIGTERM arrived; pending work is cancelled and the workers are stopped.
+    """
+    if total is None:
+        total = len(tasks) if isinstance(tasks, Sized) else None
+    bar: tqdm | Heartbeat = (
+        tqdm(total=total, desc="episodes", unit="ep", file=sys.stderr) if show_progress else Heartbeat(total)
+    )
     try:
-        if backend == "ray":
-            records = _run_ray(tasks, address, workers, bar.update, ray_timeout)
-        else:
-            records = _run_local(tasks, workers, bar.update)
+        with stop_signals():
+            try:
+                if backend == "ray":
+                    records = _run_ray(tasks, address, workers, bar.update, ray_timeout)
+                else:
+                    records = _run_local(tasks, workers, bar.update)
+            except KeyboardInterrupt:  # SIGINT that arrived outside our handler's reach
+                raise RunInterrupted(signal.SIGINT) from None
     finally:
         bar.close()
     return sorted(records, key=lambda r: r.key)

@@ -8,19 +8,17 @@ Everything here is importable at module level, so process-pool workers can unpic
 
 from __future__ import annotations
 
-import sys
 import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 
-from agents import make_policy, policy_uses_predictors
-from crossing_env import ENV_ID
-from crossing_env.safety import EpisodeMetrics
+import rollout
+from agents import policy_uses_predictors
+from rollout import build_policy, make_env
 
 
 @dataclass(frozen=True)
@@ -54,7 +52,7 @@ class EpisodeRecord:
     actions: list[float]
     """Actions given to `env.step`, for the replay log."""
     predictors: list[str]
-    """Wrappers actually used (empty if none or unavailable)."""
+    """Labels of the wrappers on (empty if none), e.g. ``["intention:qlb", "trajectory:s-cgru"]``."""
     final_ground_truth: Any = None
     """Last `GroundTruth` of the episode (lets the replay verify itself)."""
     episode_return: float = float("nan")
@@ -102,73 +100,21 @@ def make_tasks(
 
 _ENV_CACHE: dict[tuple[str, str, str], tuple[Any, list[str]]] = {}
 """Envs of this process by (scenario, predictor, intention): loading predictor models once per worker."""
-_WARNED: set[str] = set()
-
-
-def _warn_once(message: str) -> None:
-    if message not in _WARNED:
-        _WARNED.add(message)
-        print(f"crossing-eval: {message}", file=sys.stderr)
-
-
-def build_env(scenario: str, predictor: str = "none", intention: str = "none") -> tuple[Any, list[str]]:
-    """The env for a scenario with the requested wrappers.
-
-    Missing predictor modules are skipped with a message; the record then lists which wrappers were used.
-    """
-    env = gym.make(ENV_ID, scenario=scenario)
-    used: list[str] = []
-    if intention == "oracle":  # privileged upper bound (reads the world): only when asked for by name
-        from predictors.oracle import OracleIntention
-
-        env = OracleIntention(env)
-        used.append("intention:oracle")
-    elif intention != "none":
-        # Imported here, not at the top: the predictor wrappers load torch, which `--help` must not wait for.
-        try:
-            from predictors import intention as intention_mod
-        except ImportError as exc:
-            _warn_once(f"intention wrapper unavailable ({exc}); running without crossing_intention")
-        else:
-            cls_name = "QLBIntention" if intention == "qlb" else "ClassicalIntention"
-            cls = getattr(intention_mod, cls_name, None)
-            if cls is None:
-                _warn_once(f"predictors.intention has no {cls_name}; running without crossing_intention")
-            else:
-                env = cls(env)
-                used.append(f"intention:{intention}")
-    if predictor == "oracle":  # privileged upper bound (reads the world): only when asked for by name
-        from predictors.oracle import OracleTrajectory
-
-        env = OracleTrajectory(env)
-        used.append("trajectory:oracle")
-    elif predictor != "none":
-        try:
-            from predictors.trajectory_wrapper import TrajectoryPrediction  # torch-heavy: see above
-        except ImportError as exc:
-            _warn_once(f"trajectory wrapper unavailable ({exc}); running without predicted_paths")
-        else:
-            from predictors.checkpoints import CheckpointError
-
-            try:
-                env = TrajectoryPrediction(env, model=predictor)
-                used.append(f"trajectory:{predictor}")
-            except CheckpointError:
-                raise  # corrupt or tampered weights: never evaluate silently without them
-            except (OSError, ValueError, RuntimeError) as exc:
-                _warn_once(f"trajectory predictor {predictor!r} failed to load ({exc}); running without it")
-    return env, used
 
 
 def _cached_env(task: EpisodeTask) -> tuple[Any, list[str]]:
     key = (task.scenario, task.predictor, task.intention)
     if key not in _ENV_CACHE:
-        _ENV_CACHE[key] = build_env(task.scenario, task.predictor, task.intention)
+        _ENV_CACHE[key] = make_env(task.scenario, intention=task.intention, predictor=task.predictor)
     return _ENV_CACHE[key]
 
 
 def run_episode(task: EpisodeTask) -> EpisodeRecord:
-    """Run one episode with a fresh policy; same task, same record (in any process)."""
+    """Run one episode with a fresh policy through `rollout`; same task, same record (in any process).
+
+    Raises:
+        rollout.WrapperError: a predictor that cannot be loaded (never evaluated silently without it).
+    """
     # Imported here, not at the top, so that `--help` does not load torch; one thread per worker process.
     try:
         import torch
@@ -178,27 +124,12 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
         pass
 
     env, used = _cached_env(task)
-    base = env.unwrapped
-    policy = make_policy(task.policy, scenario=base.scenario, dt=base.config.dt)
-    obs, info = env.reset(seed=task.seed)
-    metrics = EpisodeMetrics(base.scenario, base.config.dt)
-    actions: list[float] = []
-    episode_return = 0.0
-    done = False
-    gt = info["ground_truth"]
-    while not done:
-        action = np.asarray(policy(obs), dtype=np.float32).reshape(1)
-        actions.append(float(action[0]))
-        obs, reward, terminated, truncated, info = env.step(action)
-        episode_return += float(reward)
-        gt = info["ground_truth"]
-        metrics.update(gt)
-        done = terminated or truncated
+    episode = rollout.run_episode(env, task.seed, policy=build_policy(task.policy, env))
     return EpisodeRecord(
         task=task,
-        result=metrics.result().as_dict(),
-        actions=actions,
-        predictors=used,
-        final_ground_truth=gt,
-        episode_return=episode_return,
+        result=episode.result,
+        actions=episode.actions,
+        predictors=list(used),
+        final_ground_truth=episode.final_ground_truth,
+        episode_return=episode.episode_return,
     )

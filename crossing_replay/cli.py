@@ -4,9 +4,9 @@ Subcommands:
 
 * ``record --scenario NAME --policy NAME --seed N --out episode.rrd [--steps N] [--predictor M]
   [--intention qlb|classical] [--save-log LOG.json] [--view]`` runs one episode of
-  ``crossing_env/Crossing-v0`` and logs it. Policies come from ``agents.make_policy`` when it knows the
-  name, else the built-ins ``constant`` and ``random``; a policy that reads predictions gets the best
-  available predictor wrappers unless ``--predictor`` / ``--intention`` say otherwise;
+  ``crossing_env/Crossing-v0`` through `rollout` and logs it. Policies come from ``agents.make_policy``
+  (``constant`` and ``random`` included); a policy that reads predictions gets the default wrappers (QLB,
+  S-CGRU) unless ``--predictor`` / ``--intention`` say otherwise, and one that cannot load is an error;
 * ``episode LOG.json --out episode.rrd`` re-runs an episode saved with `save_episode_log` (the format the
   evaluation script writes for its worst episodes) and logs it the same way;
 * ``scene --dataset eth|hotel|univ|zara1|zara2|sdd [--file F] --out scene.rrd [--model s-cgru]`` replays a
@@ -76,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--predictor",
         default=None,
         help="trajectory predictor wrapper: cvm, s-cgru, ... or a checkpoint path; 'none' for no wrapper"
-        " (default: the best available for a policy that reads predictions, else none)",
+        " (default: s-cgru for a policy that reads predictions, else none; one that cannot load is an error)",
     )
     r.add_argument(
         "--intention",

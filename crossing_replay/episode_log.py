@@ -35,7 +35,7 @@ import numpy as np
 
 from crossing_common.files import write_text_atomic
 from crossing_env.types import GroundTruth
-from crossing_replay.errors import ReplayError
+from crossing_replay.errors import LOG_HEADS, ReplayError, check_output
 from scenarios import dump_scenario, load_scenario, parse_scenario
 from scenarios.config import EnvConfig, ScenarioConfig
 
@@ -215,6 +215,7 @@ def save_episode_log(
         "metadata": dict(metadata or {}),
     }
     out = Path(path)
+    check_output(out, LOG_HEADS, "an episode log")
     try:
         text = json.dumps(data, indent=1, allow_nan=False)
     except (TypeError, ValueError) as exc:

@@ -3,9 +3,9 @@
 Predictions are magenta, ground-truth futures green and observed histories grey. The learned model's weights
 may be missing; the constant-velocity model then stands in, and the recording says so.
 
-The ``predictors`` imports here stay inside the functions: ``predictors.baselines``, ``.data``, ``.evaluate``
-and ``.train`` import torch, which ``import crossing_replay`` (and ``crossing-replay --help``) must not pay
-for.
+The ``predictors`` imports here stay inside the functions: ``predictors.baselines``, ``.data`` and
+``.checkpoints`` import torch, which ``import crossing_replay`` (and ``crossing-replay --help``) must not
+pay for.
 """
 
 from __future__ import annotations
@@ -137,9 +137,9 @@ def _load_predictor(
     """``(obs, seq_start_end) -> (N, 12, 2)`` and a label saying which predictor it really is.
 
     Learned models use ``<weights_dir>/<model>_<dataset>.pt`` (default ``predictors/weights``; the ETH/UCY
-    checkpoints are trained without that scene, as in ``predictors.evaluate``). An unknown model name is
-    an error; so are missing or unloadable weights, unless `allow_fallback` (``--fallback-cvm``), when the
-    constant-velocity model stands in and the label says so.
+    checkpoints are trained without that scene; ``predictors.checkpoints.weights_for``). An unknown model
+    name is an error; so are missing or unloadable weights, unless `allow_fallback` (``--fallback-cvm``),
+    when the constant-velocity model stands in and the label says so.
 
     Raises:
         ReplayError: unknown model, or a learned model that cannot be loaded without `allow_fallback`.
@@ -160,8 +160,7 @@ def _load_predictor(
     reason = "predictors package unavailable"
     if cvm is not None and model != "cvm":
         try:
-            from predictors.evaluate import weights_for
-            from predictors.train import WEIGHTS_DIR, load_model
+            from predictors.checkpoints import WEIGHTS_DIR, load_model, weights_for
 
             path = weights_for(model, dataset, Path(weights_dir) if weights_dir is not None else WEIGHTS_DIR)
             if path is not None:

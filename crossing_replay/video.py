@@ -18,7 +18,7 @@ from crossing_common.files import atomic_output
 from crossing_env.render import TopDownRenderer
 from crossing_replay.episode_log import load_episode_log
 from crossing_replay.episodes import env_for_policy, make_policy, run_episode
-from crossing_replay.errors import ReplayError
+from crossing_replay.errors import VIDEO_HEADS, ReplayError, check_output
 
 FORMATS = (".mp4", ".gif")
 """Video formats by file suffix."""
@@ -39,6 +39,7 @@ def _writer_check(out: Path) -> None:
         raise ReplayError(f"--out {str(out)!r}: the video must end in {' or '.join(FORMATS)}")
     if not out.parent.is_dir() and str(out.parent) != "":
         raise ReplayError(f"--out {str(out)!r}: folder {str(out.parent)!r} does not exist")
+    check_output(out, VIDEO_HEADS, "a video")
     if out.suffix.lower() == ".mp4":
         try:
             import imageio_ffmpeg  # noqa: F401

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from crossing_common.files import give_default_permissions
-from crossing_replay.errors import ReplayError
+from crossing_replay.errors import PNG_HEADS, ReplayError, check_output
 
 
 def viewer_executable() -> str | None:
@@ -139,6 +139,7 @@ def screenshot(
     verify_recording(src)
     if dst.suffix != ".png" or not dst.parent.is_dir():
         raise ReplayError(f"--out {str(dst)!r}: must be a .png in an existing folder")
+    check_output(dst, PNG_HEADS, "a PNG image")
     exe = viewer_executable()
     if exe is None:
         raise ReplayError("the rerun viewer binary was not found (is rerun-sdk installed?)")

@@ -8,7 +8,7 @@ Every reset draws one built-in scenario (`ScenarioMix`), so the policy meets the
 standardises the observation (positions reach ±500 m) and the reward. Envs run in a ``DummyVecEnv`` by
 default (``--subproc`` for worker processes; on a 2-core machine they cost more than they save).
 
-Outputs in ``--out``: ``model.zip`` + ``model.vecnormalize.pkl`` (the pair ``crossing-eval --policies
+Outputs in ``--out``: ``model.zip`` + ``model.vecnormalize.npz`` (the pair ``crossing-eval --policies
 sb3:OUT/model.zip`` loads), ``step_N.zip`` + statistics (checkpoints every ``--eval-every`` steps, to
 select from), ``progress.csv`` (SB3's logger), ``episodes.csv`` (one row per training episode: return,
 collision, yield obligations and violations, delay) and ``learning_curve.png``. The final evaluation
@@ -72,11 +72,14 @@ class Args:
 
 def parse_args(argv: list[str] | None = None) -> Args:
     """Parse the command line into `Args` (argparse exits with 2 on bad values)."""
-    from crossing_common.cli import int_at_least
+    from crossing_common.cli import DefaultsHelpFormatter, int_at_least
 
     positive, non_negative = int_at_least(1), int_at_least(0)
     d = Args()
-    p = argparse.ArgumentParser(description="PPO (Stable-Baselines3) on crossing_env/Crossing-v0")
+    p = argparse.ArgumentParser(
+        description="PPO (Stable-Baselines3) on crossing_env/Crossing-v0",
+        formatter_class=DefaultsHelpFormatter,
+    )
     p.add_argument("--timesteps", type=positive, default=d.timesteps, help="training environment steps")
     p.add_argument(
         "--scenarios", default="", help="comma-separated scenarios drawn per reset (default: all built-in)"
@@ -160,11 +163,10 @@ def make_env(scenarios: tuple[str, ...], predictors: bool) -> Any:
 
     env = gym.make(crossing_env.ENV_ID, scenario=scenarios[0])
     env = ScenarioMix(env, scenarios)
-    if predictors:
-        from predictors.intention import QLBIntention
-        from predictors.trajectory_wrapper import TrajectoryPrediction
+    if predictors:  # the same wrappers, in the same order, as crossing-eval gives a predicting policy
+        from rollout import DEFAULT_INTENTION, DEFAULT_PREDICTOR, wrap
 
-        env = TrajectoryPrediction(QLBIntention(env))
+        env, _ = wrap(env, DEFAULT_INTENTION, DEFAULT_PREDICTOR)
     from stable_baselines3.common.monitor import Monitor
 
     return Monitor(env)
@@ -303,8 +305,8 @@ def plot_learning_curve(episodes_csv: Path, png: Path, window: int = 200) -> Non
 def evaluate(model_path: Path, scenarios: tuple[str, ...], episodes: int, workers: int = 1) -> dict[str, Any]:
     """`crossing-eval`'s episodes (same seeds, same code) for the saved model; metrics plus mean return."""
     from crossing_eval.plugins import policy_spec
-    from crossing_eval.report import summarise
     from crossing_eval.runners import run_tasks
+    from crossing_eval.summary import summarise
     from crossing_eval.tasks import make_tasks
 
     name = f"sb3:{model_path}"
@@ -352,12 +354,14 @@ def main(argv: list[str] | None = None) -> int:
     log = EpisodeLog(args.out / "episodes.csv")
     from stable_baselines3.common.callbacks import CallbackList, EveryNTimesteps
 
+    from agents.sb3 import save_stats
+
     callbacks: list[Any] = [log.callback]
     if args.eval_every:
         callbacks.append(EveryNTimesteps(args.eval_every, _Checkpoint(model, venv, args.out)))
     t0 = time.perf_counter()
     model.save(args.out / "step_0.zip")
-    venv.save(str(args.out / "step_0.vecnormalize.pkl"))
+    save_stats(venv, args.out / "step_0.vecnormalize.npz")
     try:
         model.learn(args.timesteps, callback=CallbackList(callbacks), progress_bar=args.progress)
     except KeyboardInterrupt:  # Ctrl-C stops training early; what was learnt is still saved and evaluated
@@ -369,12 +373,12 @@ def main(argv: list[str] | None = None) -> int:
         f" ({model.num_timesteps / train_s:.0f} steps/s), seed {args.seed}, {len(args.scenarios)} scenario(s)"
     )
     model.save(args.out / "model.zip")
-    venv.save(str(args.out / "model.vecnormalize.pkl"))
+    save_stats(venv, args.out / "model.vecnormalize.npz")
     plot_learning_curve(args.out / "episodes.csv", args.out / "learning_curve.png")
-    print(f"saved {args.out}/model.zip (+ model.vecnormalize.pkl), episodes.csv, learning_curve.png")
+    print(f"saved {args.out}/model.zip (+ model.vecnormalize.npz), episodes.csv, learning_curve.png")
     venv.close()
     if args.eval_episodes:
-        from crossing_eval.report import format_table
+        from crossing_eval.summary import format_table
 
         ev = evaluate(args.out / "model.zip", args.scenarios, args.eval_episodes)
         print(format_table(ev["summary"], [f"sb3:{args.out / 'model.zip'}"]))
@@ -386,11 +390,13 @@ def _Checkpoint(model: Any, venv: Any, out: Path) -> Any:
     """Callback: saves ``step_N.zip`` + its normalisation statistics at every call."""
     from stable_baselines3.common.callbacks import BaseCallback
 
+    from agents.sb3 import save_stats
+
     class _Save(BaseCallback):
         def _on_step(self) -> bool:
             path = out / f"step_{self.num_timesteps}.zip"
             model.save(path)
-            venv.save(str(path.with_suffix(".vecnormalize.pkl")))
+            save_stats(venv, path.with_suffix(".vecnormalize.npz"))
             return True
 
     return _Save()

@@ -2,7 +2,7 @@
 
 Departure from the S-CGRU paper (Xu et al. 2023): its printed equations mix complex gates with a
 ``(1 - z) * h + z * h~`` update but do not say how a complex gate in ``(0, 1)`` is obtained, and applying the
-holomorphic sigmoid/tanh to complex numbers has poles (unbounded gates, see ``shared/docs/dependencies.md``).
+holomorphic sigmoid/tanh to complex numbers has poles (unbounded gates: sigmoid(z) diverges at z = iπ).
 We follow Wolter & Yao, "Complex Gated Recurrent Neural Networks" (NeurIPS 2018) instead:
 
 * the real input is lifted to ``x + 0i``; all pre-activations are complex affine maps

@@ -1,35 +1,47 @@
-"""Checked predictor weights: sha256 manifest of the shipped checkpoints and sanity checks on any checkpoint.
+"""Predictor checkpoints: writing, loading and checking them (sha256 manifest, sane weights).
+
+Checkpoints are a dict ``{"format", "config", "state_dict", "meta"}`` of plain types and tensors, loadable
+with ``torch.load(weights_only=True)``; weights are stored in float16 to keep shipped files small and cast
+back to float32 on load (`save_checkpoint`, `load_model`).
 
 A flipped byte in a float16 tensor still loads and runs, and all-NaN or huge weights give predictions of
-zeros or hundreds of metres without a word. So `load_model` (`predictors.train`) checks every checkpoint:
+zeros or hundreds of metres without a word. So `load_model` checks every checkpoint:
 
 - a shipped file (in ``predictors/weights/``) must match its sha256 in ``weights/manifest.json``;
 - every tensor of any checkpoint must be finite and no larger in magnitude than `MAX_ABS_WEIGHT`.
 
-``python -m predictors.checkpoints`` verifies every shipped file; ``--update`` rewrites the manifest after
-a deliberate retraining (``crossing-train --force`` does so for the file it replaced).
+``python -m studies.verify_weights`` verifies every shipped file; ``--update`` rewrites the manifest after
+a deliberate retraining (``crossing-train --force`` does so for the file it replaced, through
+`install_checkpoint`).
 """
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 import json
-import sys
+import os
+import shutil
+import tempfile
 from collections.abc import Mapping, Sequence
+from dataclasses import fields
 from pathlib import Path
 
 import torch
 
-from crossing_common.files import write_text_atomic
+from crossing_common.files import atomic_output, give_default_permissions, write_text_atomic
+from predictors.models import ModelConfig, SocialRecurrent
 
 SHIPPED_DIR = Path(__file__).resolve().parent / "weights"
 """Folder of the checkpoints shipped with the package."""
+WEIGHTS_DIR = SHIPPED_DIR
+"""The same folder, under the name the loaders (trajectory wrapper, replay, studies) use."""
 MANIFEST = SHIPPED_DIR / "manifest.json"
 """``{"<file name>": "<sha256 hex>"}`` for every shipped checkpoint."""
 MAX_ABS_WEIGHT = 1e3
 """Largest weight magnitude accepted. Trained models here stay below 1; float16 tops out at 65504, where
 a corrupted exponent lands, and the paths such weights predict run to hundreds of metres."""
+CHECKPOINT_FORMAT = "crossing-env/trajectory-predictor/1"
+"""Value of a checkpoint's ``format`` field."""
 
 
 class CheckpointError(ValueError):
@@ -70,14 +82,14 @@ def verify_shipped(path: Path) -> None:
     if expected is None:
         raise CheckpointError(
             f"{path}: not in {MANIFEST.name}, so it cannot be checked; run"
-            " `python -m predictors.checkpoints --update` if you put it there on purpose"
+            " `python -m studies.verify_weights --update` if you put it there on purpose"
         )
     actual = sha256_file(path)
     if actual != expected:
         raise CheckpointError(
             f"{path}: sha256 {actual[:12]}… does not match the manifest's {expected[:12]}…; the file is"
             " corrupt or was replaced (restore it with `git checkout`, or run"
-            " `python -m predictors.checkpoints --update` after a deliberate retraining)"
+            " `python -m studies.verify_weights --update` after a deliberate retraining)"
         )
 
 
@@ -114,26 +126,135 @@ def update_manifest(names: Sequence[str] | None = None) -> dict[str, str]:
     return manifest
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Verify the shipped checkpoints (exit 1 if one fails) or, with ``--update``, rewrite the manifest."""
-    parser = argparse.ArgumentParser(
-        prog="python -m predictors.checkpoints", description=__doc__.splitlines()[0]
-    )
-    parser.add_argument("--update", action="store_true", help="rewrite the manifest from the files present")
-    args = parser.parse_args(argv)
-    if args.update:
-        print(f"wrote {MANIFEST} ({len(update_manifest())} files)")
-        return 0
-    bad = 0
-    for f in sorted(SHIPPED_DIR.glob("*.pt")):
+def save_checkpoint(path: Path, model: SocialRecurrent, meta: dict[str, object]) -> None:
+    """Write the checkpoint atomically (temp file + ``os.replace``); weights in float16."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    payload = {
+        "format": CHECKPOINT_FORMAT,
+        "config": model.config.to_dict(),
+        "state_dict": {k: v.detach().to(torch.float16).clone() for k, v in model.state_dict().items()},
+        "meta": json.dumps(meta),
+    }
+    with atomic_output(path) as tmp:
+        torch.save(payload, tmp)
+
+
+def load_model(path: str | Path, *, verify_manifest: bool = True) -> SocialRecurrent:
+    """Load a checkpoint written by :func:`save_checkpoint` with ``weights_only=True``.
+
+    A shipped checkpoint must match its sha256 in the manifest, and no checkpoint may hold non-finite or
+    absurdly large weights. Pickles that would run code are refused by ``weights_only=True``.
+
+    Args:
+        path: The checkpoint file.
+        verify_manifest: False skips the manifest check only (the weight checks still run): for the
+            unfinished file a training run writes beside a shipped checkpoint before it replaces it.
+
+    Raises:
+        FileNotFoundError: no such file.
+        ValueError: the file is corrupt (checksum, NaN/inf or huge weights: `CheckpointError`), not a
+            predictor checkpoint, or its weights do not fit its config; the message names the file.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"predictor checkpoint not found: {path}")
+    if verify_manifest:
+        verify_shipped(path)
+    try:
+        payload = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:
+        raise ValueError(f"{path}: not a readable torch checkpoint ({type(exc).__name__}: {exc})") from exc
+    if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
+        raise ValueError(f"{path}: not a crossing-env trajectory predictor checkpoint (field 'format')")
+    cfg_dict = payload.get("config")
+    known = {f.name for f in fields(ModelConfig)}
+    if not isinstance(cfg_dict, dict) or set(cfg_dict) - known:
+        raise ValueError(
+            f"{path}: field 'config' must hold ModelConfig fields {sorted(known)}, got {cfg_dict!r}"
+        )
+    try:
+        config = ModelConfig(**cfg_dict)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{path}: invalid field 'config': {exc}") from exc
+    model = SocialRecurrent(config)
+    state = payload.get("state_dict")
+    if not isinstance(state, dict):
+        raise ValueError(f"{path}: field 'state_dict' missing or not a dict")
+    check_weights(state, path)
+    try:
+        model.load_state_dict({k: v.float() for k, v in state.items()}, strict=True)
+    except (RuntimeError, AttributeError) as exc:
+        raise ValueError(f"{path}: weights do not match architecture {config.kind!r}: {exc}") from exc
+    model.eval()
+    return model
+
+
+def checkpoint_meta(path: str | Path) -> dict[str, object]:
+    """Training metadata stored in a checkpoint (budget, validation scores)."""
+    payload = torch.load(Path(path), map_location="cpu", weights_only=True)
+    return json.loads(payload.get("meta", "{}"))
+
+
+def weights_for(kind: str, scene: str, weights_dir: Path) -> Path | None:
+    """Checkpoint of model ``kind`` for ``scene``, or ``None`` if absent.
+
+    ``<kind>_<scene>.pt`` (the ETH/UCY ones are trained without that scene); for ``sdd``, if there is no
+    ``<kind>_sdd.pt``, ``<kind>_all.pt`` (trained on all ETH/UCY recordings: a cross-dataset result).
+    """
+    for name in [f"{kind}_{scene}.pt"] + ([f"{kind}_all.pt"] if scene == "sdd" else []):
+        if (weights_dir / name).is_file():
+            return weights_dir / name
+    return None
+
+
+def partial_path(target: Path) -> Path:
+    """A new, empty, uniquely named file beside `target` for a checkpoint still being written.
+
+    Beside it, so that `install_checkpoint` can move it over `target` with one atomic ``os.replace``.
+    """
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".partial", dir=target.parent)
+    os.close(fd)
+    give_default_permissions(name)
+    return Path(name)
+
+
+def install_checkpoint(finished: Path, target: Path) -> None:
+    """Move a finished checkpoint over `target` in one ``os.replace``; a shipped target's sum follows.
+
+    `finished` must lie in `target`'s folder (`partial_path`). It is loaded with every weight check before
+    anything is touched, so a bad file leaves `target` as it was. For a shipped target the manifest entry
+    is rewritten right after the replace; should that fail, the previous file is put back (from a hard
+    link kept until then), so the file and its entry change together or not at all. Only a kill between
+    the two steps can leave them apart, which `python -m studies.verify_weights` then reports.
+
+    Raises:
+        ValueError: `finished` is not a usable checkpoint, or not in `target`'s folder.
+    """
+    if finished.resolve().parent != target.resolve().parent:
+        raise ValueError(f"{finished}: must be in the folder of {target} to replace it atomically")
+    load_model(finished, verify_manifest=False)
+    if not is_shipped(target):
+        os.replace(finished, target)
+        return
+    backup = None
+    if target.exists():
+        backup = partial_path(target)
+        backup.unlink()
         try:
-            verify_shipped(f)
-        except CheckpointError as exc:
-            bad += 1
-            print(exc, file=sys.stderr)
-    print(f"{len(list(SHIPPED_DIR.glob('*.pt'))) - bad} ok, {bad} failed")
-    return 1 if bad else 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+            os.link(target, backup)
+        except OSError:  # no hard links on this file system: a copy serves as well
+            shutil.copy2(target, backup)
+    try:
+        os.replace(finished, target)
+        try:
+            update_manifest([target.name])
+        except BaseException:
+            if backup is not None:
+                os.replace(backup, target)
+            else:
+                target.unlink(missing_ok=True)
+            raise
+    finally:
+        if backup is not None:
+            backup.unlink(missing_ok=True)

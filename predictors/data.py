@@ -1,6 +1,6 @@
 """ETH/UCY and SDD trajectory loading, Social-GAN 20-frame windows and batching.
 
-The windowing follows the Social-GAN protocol described in ``shared/docs/prediction.md`` §1: a window
+The windowing follows the Social-GAN protocol (Gupta et al., CVPR 2018, and its data loader): a window
 starts at every distinct frame (skip 1), spans 20 consecutive distinct frames (8 observed + 12 predicted,
 0.4 s apart), keeps a pedestrian only if it is present in all 20 frames, and keeps a window only if it holds
 at least 2 such pedestrians. Batches concatenate windows and carry ``seq_start_end`` index ranges.

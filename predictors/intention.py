@@ -42,6 +42,15 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from crossing_env.observation import (
+    CROSSING_INTENTION_KEY,
+    EGO_KEY,
+    PEDESTRIANS_KEY,
+    VEHICLES_KEY,
+    EgoColumn,
+    PedestrianColumn,
+    VehicleColumn,
+)
 from crossing_env.pedestrians.quantum import disjunction_probabilities
 
 __all__ = [
@@ -194,7 +203,7 @@ def crossing_intention(
     """Per-slot crossing probability within `horizon` from one observation (see the module docstring).
 
     Args:
-        obs: The env observation ("pedestrians" (K, 8), "vehicles" (M, 7), "ego" (6,)).
+        obs: The env observation (`PEDESTRIANS_KEY` (K, 8), `VEHICLES_KEY` (M, 7), `EGO_KEY` (6,)).
         horizon: Seconds ahead.
         road_map: Static map facts relative to the ego.
         config: Model parameters.
@@ -205,13 +214,14 @@ def crossing_intention(
         (K,) float32 in [0, 1], 0 for absent slots.
     """
     c = config
-    ped = obs["pedestrians"].astype(np.float64)
-    veh = obs["vehicles"]
-    ego = obs["ego"]
-    present = ped[:, 0] > 0.5
-    dx, dy, vx, vy = ped[:, 1], ped[:, 2], ped[:, 3], ped[:, 4]
-    on_road = ped[:, 7] > 0.5
-    speed = max(float(ego[0]), 0.0)
+    ped = obs[PEDESTRIANS_KEY].astype(np.float64)
+    veh = obs[VEHICLES_KEY]
+    ego = obs[EGO_KEY]
+    present = ped[:, PedestrianColumn.PRESENCE] > 0.5
+    dx, dy = ped[:, PedestrianColumn.DX], ped[:, PedestrianColumn.DY]
+    vx, vy = ped[:, PedestrianColumn.VX], ped[:, PedestrianColumn.VY]
+    on_road = ped[:, PedestrianColumn.ON_ROAD] > 0.5
+    speed = max(float(ego[EgoColumn.SPEED]), 0.0)
     half_len = road_map.ego_length / 2
 
     # Time until the ego's rear passes the pedestrian's x (the event needs the pedestrian ahead of it).
@@ -223,13 +233,14 @@ def crossing_intention(
     south = dy < road_map.kerb_low
     kerb_dist = np.where(south, road_map.kerb_low - dy, dy - road_map.kerb_high)
     towards = np.where(south, vy, -vy)
-    waiting = ped[:, 6] > 0.5
+    waiting = ped[:, PedestrianColumn.WAITING] > 0.5
     walking_in = (towards > c.towards_speed) & ~waiting
     # From the spot where it decides to the carriageway: the remaining distance, plus the start from rest.
     t_enter = np.where(waiting, np.maximum(kerb_dist, 0.0), c.kerb_standoff) / c.walking_speed + c.start_delay
     t_walk_in = np.maximum(kerb_dist - c.kerb_standoff, 0.0) / np.maximum(towards, c.towards_speed)
     # Walking along the sidewalk: to the crossing (if any) then to the kerb.
-    cross_dx = float(ego[2]) + road_map.crossing_offset - dx if road_map.has_crossing else np.zeros_like(dx)
+    to_stop_line = float(ego[EgoColumn.DISTANCE_TO_STOP_LINE])
+    cross_dx = to_stop_line + road_map.crossing_offset - dx if road_map.has_crossing else np.zeros_like(dx)
     along = np.maximum(np.abs(cross_dx) - road_map.crossing_half_width, 0.0)
     t_along = (along + np.maximum(kerb_dist - c.kerb_standoff, 0.0)) / c.walking_speed
     t_kerb = np.where(waiting, 0.0, np.where(walking_in, t_walk_in, t_along))
@@ -246,7 +257,7 @@ def crossing_intention(
     # Cars as rows (dx, vx, length), the ego first; absent vehicle slots are all zeros, hence not moving.
     cars = np.empty((veh.shape[0] + 1, 3))
     cars[0] = (0.0, speed, road_map.ego_length)
-    cars[1:] = veh[:, (1, 3, 5)]
+    cars[1:] = veh[:, (VehicleColumn.DX, VehicleColumn.VX, VehicleColumn.LENGTH)]
     car_spd = np.abs(cars[:, 1])
     car_half = 0.5 * cars[:, 2]
     dist = (dx[:, None] - cars[:, 0]) * np.sign(cars[:, 1]) - car_half  # car front to the ped's line
@@ -258,7 +269,8 @@ def crossing_intention(
 
     # Decision rate at that gap (tabulated: belief averaged over the unknown critical gap, then CBM or QLB).
     rate = np.interp(gap, GAP_GRID, rate_table)
-    if road_map.signalised and ego[4] > 0.5:  # cars green: pedestrians at the crossing face red
+    cars_green = ego[EgoColumn.CAR_GREEN] > 0.5
+    if road_map.signalised and cars_green:  # cars green: pedestrians at the crossing face red
         at_crossing = np.abs(cross_dx) <= road_map.crossing_half_width + 1.0
         rate = np.where(at_crossing, np.interp(gap, GAP_GRID, red_rate_table), rate)
     window = np.maximum(window_end - t_kerb - t_enter, 0.0)
@@ -292,7 +304,8 @@ class CrossingIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs)
         if variant not in ("qlb", "cbm"):
             raise ValueError(f"crossing intention: variant must be 'qlb' or 'cbm', got {variant!r}")
         space = env.observation_space
-        if not isinstance(space, spaces.Dict) or not {"pedestrians", "vehicles", "ego"} <= set(space.spaces):
+        needed = {PEDESTRIANS_KEY, VEHICLES_KEY, EGO_KEY}
+        if not isinstance(space, spaces.Dict) or not needed <= set(space.spaces):
             raise ValueError(
                 f"crossing intention needs a Dict observation with pedestrians/vehicles/ego, got {space}"
             )
@@ -302,9 +315,9 @@ class CrossingIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs)
         self._rates = look_rate_table(variant, self.config)
         self._red_rates = look_rate_table(variant, self.config, self.config.red_light_prior)
         self._map = _map_from_env(env)
-        k = space.spaces["pedestrians"].shape[0]
+        k = space.spaces[PEDESTRIANS_KEY].shape[0]
         new = dict(space.spaces)
-        new["crossing_intention"] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
+        new[CROSSING_INTENTION_KEY] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
         self.observation_space = spaces.Dict(new)
 
     def reset(
@@ -318,7 +331,7 @@ class CrossingIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs)
     def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """The observation with ``crossing_intention`` added."""
         out = dict(observation)
-        out["crossing_intention"] = crossing_intention(
+        out[CROSSING_INTENTION_KEY] = crossing_intention(
             observation, self.horizon, self._map, self.config, self._rates, self._red_rates
         )
         return out

@@ -33,14 +33,21 @@ import numpy as np
 from gymnasium import spaces
 
 from crossing_env import physics
+from crossing_env.observation import (
+    CROSSING_INTENT_KEY,
+    CROSSING_INTENTION_KEY,
+    HISTORY_INTERVAL,
+    PEDESTRIAN_HISTORY_KEY,
+    PEDESTRIANS_KEY,
+    PREDICTED_PATHS_KEY,
+    PointColumn,
+)
 from crossing_env.pedestrians.transitions import APPROACHING, CROSSING, WAITING
 
 __all__ = ["OracleIntention", "OracleTrajectory", "rollout_pedestrians"]
 
 PRED_LEN = 12
-"""Predicted positions per pedestrian (the ETH/UCY protocol: 12 at 0.4 s)."""
-PRED_INTERVAL = 0.4
-"""Seconds between predicted positions."""
+"""Predicted positions per pedestrian (the ETH/UCY protocol: 12, `HISTORY_INTERVAL` apart)."""
 MAX_STEP = 3.0
 """Largest distance (m) a pedestrian covers in one 0.4 s step, for the space's bound (as the S-CGRU
 wrapper's)."""
@@ -93,13 +100,13 @@ class OracleIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         if not 0.0 <= undecided <= 1.0:
             raise ValueError(f"OracleIntention: undecided must be a probability in [0, 1], got {undecided}")
         space = env.observation_space
-        if not isinstance(space, spaces.Dict) or "pedestrians" not in space.spaces:
+        if not isinstance(space, spaces.Dict) or PEDESTRIANS_KEY not in space.spaces:
             raise ValueError(f"OracleIntention needs a crossing_env Dict observation, got {space}")
         self.undecided = float(undecided)
-        k = space.spaces["pedestrians"].shape[0]
+        k = space.spaces[PEDESTRIANS_KEY].shape[0]
         new = dict(space.spaces)
-        new["crossing_intention"] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
-        new["crossing_intent"] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
+        new[CROSSING_INTENTION_KEY] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
+        new[CROSSING_INTENT_KEY] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
         self.observation_space = spaces.Dict(new)
 
     def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -116,8 +123,8 @@ class OracleIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         to_cross = peds.intends[p] & ((state == APPROACHING) | (state == WAITING) | (state == CROSSING))
         out[present] = np.where(decided, to_cross.astype(np.float32), np.float32(self.undecided))
         result = dict(observation)
-        result["crossing_intention"] = out
-        result["crossing_intent"] = out.copy()
+        result[CROSSING_INTENTION_KEY] = out
+        result[CROSSING_INTENT_KEY] = out.copy()
         return result
 
 
@@ -131,10 +138,10 @@ class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         gym.utils.RecordConstructorArgs.__init__(self, refresh_steps=refresh_steps)
         gym.ObservationWrapper.__init__(self, env)
         space = env.observation_space
-        hist = space.spaces.get("pedestrian_history") if isinstance(space, spaces.Dict) else None
+        hist = space.spaces.get(PEDESTRIAN_HISTORY_KEY) if isinstance(space, spaces.Dict) else None
         if not isinstance(hist, spaces.Box) or len(hist.shape) != 3:
             raise ValueError(
-                f"OracleTrajectory needs 'pedestrian_history' (K, T, 2) in the observation, got {space}"
+                f"OracleTrajectory needs {PEDESTRIAN_HISTORY_KEY!r} (K, T, 2) in the observation, got {space}"
             )
         if not (isinstance(refresh_steps, int) and refresh_steps >= 1):
             raise ValueError(
@@ -145,8 +152,8 @@ class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         bound = float(max(np.abs(hist.low).max(), np.abs(hist.high).max())) + PRED_LEN * MAX_STEP
         self.bound = np.float32(bound) if np.isfinite(bound) else np.float32(np.finfo(np.float32).max)
         new = dict(space.spaces)
-        new["predicted_paths"] = spaces.Box(
-            -self.bound, self.bound, (self.num_slots, PRED_LEN, 2), np.float32
+        new[PREDICTED_PATHS_KEY] = spaces.Box(
+            -self.bound, self.bound, (self.num_slots, PRED_LEN, len(PointColumn)), np.float32
         )
         self.observation_space = spaces.Dict(new)
         self._cache: tuple[int, np.ndarray, np.ndarray] | None = None  # (start step, ids, positions)
@@ -166,8 +173,8 @@ class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         peds = world.pedestrians
         slots = _slots(self.env)
         step = round(world.time / world.dt)
-        every = round(PRED_INTERVAL / world.dt)
-        paths = np.zeros((self.num_slots, PRED_LEN, 2), np.float32)
+        every = round(HISTORY_INTERVAL / world.dt)
+        paths = np.zeros((self.num_slots, PRED_LEN, len(PointColumn)), np.float32)
         present = np.flatnonzero(slots >= 0)
         if present.size:
             p = slots[present]
@@ -193,5 +200,5 @@ class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
             ego = world.ego_position
             paths[present] = np.transpose(future - ego, (1, 0, 2)).astype(np.float32)
         out = dict(observation)
-        out["predicted_paths"] = np.clip(paths, -self.bound, self.bound)
+        out[PREDICTED_PATHS_KEY] = np.clip(paths, -self.bound, self.bound)
         return out

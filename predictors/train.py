@@ -5,9 +5,11 @@ ETH/UCY ``_train`` files of every recording), with random-rotation augmentation,
 bivariate Gaussian NLL. Model selection uses the ``val/`` split only (most-likely ADE after each epoch);
 the test split is never read here.
 
-Checkpoints are a dict ``{"format", "config", "state_dict", "meta"}`` of plain types and tensors, loadable
-with ``torch.load(weights_only=True)``; weights are stored in float16 to keep shipped files small and cast
-back to float32 on load.
+The run writes into a hidden file beside ``--out`` and moves it over ``--out`` only once it is finished
+(`predictors.checkpoints.install_checkpoint`): an interrupted or failed run leaves the previous file, and
+for ``--force`` over a shipped checkpoint its manifest entry, untouched. Checkpoint format, saving and
+loading: `predictors.checkpoints` (``load_model``, ``save_checkpoint`` and ``checkpoint_meta`` are also
+importable from here).
 """
 
 from __future__ import annotations
@@ -16,7 +18,6 @@ import argparse
 import ast
 import inspect
 import itertools
-import json
 import sys
 import textwrap
 import time
@@ -28,8 +29,17 @@ import torch
 from tqdm import tqdm
 
 from crossing_common.cli import DefaultsHelpFormatter
-from crossing_common.files import atomic_output
-from predictors.checkpoints import CheckpointError, check_weights, is_shipped, update_manifest, verify_shipped
+from predictors.checkpoints import (
+    CHECKPOINT_FORMAT,
+    WEIGHTS_DIR,
+    CheckpointError,
+    checkpoint_meta,
+    install_checkpoint,
+    is_shipped,
+    load_model,
+    partial_path,
+    save_checkpoint,
+)
 from predictors.data import (
     SCENES,
     Windows,
@@ -39,10 +49,26 @@ from predictors.data import (
     split_files,
     to_batch,
 )
-from predictors.models import MODEL_KINDS, ModelConfig, SocialRecurrent, default_config
+from predictors.models import MODEL_KINDS, SocialRecurrent, default_config
 
-CHECKPOINT_FORMAT = "crossing-env/trajectory-predictor/1"
-WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
+__all__ = [
+    "CHECKPOINT_FORMAT",
+    "RUNS_DIR",
+    "SCALE_GRID",
+    "WEIGHTS_DIR",
+    "TrainConfig",
+    "calibrate_sampling",
+    "checkpoint_meta",
+    "load_model",
+    "load_training_data",
+    "main",
+    "most_likely_ade",
+    "output_path",
+    "parse_args",
+    "save_checkpoint",
+    "train",
+]
+
 RUNS_DIR = Path("runs")
 """Default folder (relative to the working directory) of the checkpoints `crossing-train` writes."""
 
@@ -126,70 +152,6 @@ def most_likely_ade(model: SocialRecurrent, w: Windows, batch_peds: int = 2048) 
     return ade / max(n, 1), fde / max(n, 1)
 
 
-def save_checkpoint(path: Path, model: SocialRecurrent, meta: dict[str, object]) -> None:
-    """Write the checkpoint atomically (temp file + ``os.replace``); weights in float16."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    payload = {
-        "format": CHECKPOINT_FORMAT,
-        "config": model.config.to_dict(),
-        "state_dict": {k: v.detach().to(torch.float16).clone() for k, v in model.state_dict().items()},
-        "meta": json.dumps(meta),
-    }
-    with atomic_output(path) as tmp:
-        torch.save(payload, tmp)
-
-
-def load_model(path: str | Path) -> SocialRecurrent:
-    """Load a checkpoint written by :func:`save_checkpoint` with ``weights_only=True``.
-
-    A shipped checkpoint must match its sha256 in the manifest, and no checkpoint may hold non-finite or
-    absurdly large weights (`predictors.checkpoints`). Pickles that would run code are refused by
-    ``weights_only=True``.
-
-    Raises:
-        FileNotFoundError: no such file.
-        ValueError: the file is corrupt (checksum, NaN/inf or huge weights: `CheckpointError`), not a
-            predictor checkpoint, or its weights do not fit its config; the message names the file.
-    """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"predictor checkpoint not found: {path}")
-    verify_shipped(path)
-    try:
-        payload = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:
-        raise ValueError(f"{path}: not a readable torch checkpoint ({type(exc).__name__}: {exc})") from exc
-    if not isinstance(payload, dict) or payload.get("format") != CHECKPOINT_FORMAT:
-        raise ValueError(f"{path}: not a crossing-env trajectory predictor checkpoint (field 'format')")
-    cfg_dict = payload.get("config")
-    known = {f.name for f in fields(ModelConfig)}
-    if not isinstance(cfg_dict, dict) or set(cfg_dict) - known:
-        raise ValueError(
-            f"{path}: field 'config' must hold ModelConfig fields {sorted(known)}, got {cfg_dict!r}"
-        )
-    try:
-        config = ModelConfig(**cfg_dict)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"{path}: invalid field 'config': {exc}") from exc
-    model = SocialRecurrent(config)
-    state = payload.get("state_dict")
-    if not isinstance(state, dict):
-        raise ValueError(f"{path}: field 'state_dict' missing or not a dict")
-    check_weights(state, path)
-    try:
-        model.load_state_dict({k: v.float() for k, v in state.items()}, strict=True)
-    except (RuntimeError, AttributeError) as exc:
-        raise ValueError(f"{path}: weights do not match architecture {config.kind!r}: {exc}") from exc
-    model.eval()
-    return model
-
-
-def checkpoint_meta(path: str | Path) -> dict[str, object]:
-    """Training metadata stored in a checkpoint (budget, validation scores)."""
-    payload = torch.load(Path(path), map_location="cpu", weights_only=True)
-    return json.loads(payload.get("meta", "{}"))
-
-
 SCALE_GRID: tuple[float, ...] = (0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 0.75, 1.0)
 
 
@@ -202,6 +164,17 @@ def calibrate_sampling(path: Path, val_w: Windows, num_samples: int = 20, seed: 
     The checkpoint is rewritten with the chosen scale in its config.
     """
     model = load_model(path)
+    meta = checkpoint_meta(path)
+    meta.update(_calibrate(model, val_w, num_samples, seed))
+    save_checkpoint(path, model, meta)
+    return model.config.sample_scale
+
+
+@torch.no_grad()
+def _calibrate(
+    model: SocialRecurrent, val_w: Windows, num_samples: int = 20, seed: int = 0
+) -> dict[str, float]:
+    """Set ``model``'s ``sample_scale`` as :func:`calibrate_sampling` picks it; the metadata it adds."""
     gen_seed = seed
     best_scale, best_ade = 1.0, float("inf")
     b = to_batch(val_w)
@@ -212,10 +185,7 @@ def calibrate_sampling(path: Path, val_w: Windows, num_samples: int = 20, seed: 
         if ade < best_ade:
             best_scale, best_ade = scale, ade
     model.config = replace(model.config, sample_scale=best_scale)
-    meta = checkpoint_meta(path)
-    meta.update({"sample_scale": best_scale, "val_ped20_ade": best_ade})
-    save_checkpoint(path, model, meta)
-    return best_scale
+    return {"sample_scale": best_scale, "val_ped20_ade": best_ade}
 
 
 def output_path(cfg: TrainConfig) -> Path:
@@ -234,7 +204,12 @@ def output_path(cfg: TrainConfig) -> Path:
 
 
 def train(cfg: TrainConfig) -> Path:
-    """Train one model; return the checkpoint path. Model selection on val ADE only."""
+    """Train one model; return the checkpoint path. Model selection on val ADE only.
+
+    The checkpoint is written to a hidden file beside the output path and moved over it only when the
+    run has finished (with the manifest entry of a shipped file): on any error or interrupt the previous
+    file stays as it was and the hidden file is removed.
+    """
     if cfg.model not in MODEL_KINDS:
         raise ValueError(f"--model must be one of {MODEL_KINDS}, got {cfg.model!r}")
     if cfg.scene not in (*SCENES, "sdd", "all"):
@@ -251,6 +226,17 @@ def train(cfg: TrainConfig) -> Path:
     root = Path(cfg.data) if cfg.data else default_data_root()
     train_w, val_w = load_training_data(root, cfg.scene)
     out = output_path(cfg)
+    work = partial_path(out)
+    try:
+        return _train(cfg, train_w, val_w, rng, out, work)
+    finally:
+        work.unlink(missing_ok=True)
+
+
+def _train(
+    cfg: TrainConfig, train_w: Windows, val_w: Windows, rng: np.random.Generator, out: Path, work: Path
+) -> Path:
+    """The training run of :func:`train`, writing into ``work``; installs it as ``out`` at the end."""
     mcfg = replace(
         default_config(cfg.model, cfg.fov_deg),
         hidden_size=cfg.hidden_size,
@@ -309,7 +295,7 @@ def train(cfg: TrainConfig) -> Path:
                 "patience": cfg.patience,
                 "lr_plateau": cfg.lr_plateau,
             }
-            save_checkpoint(out, model, meta)
+            save_checkpoint(work, model, meta)
         if plateau is not None:
             plateau.step(val[0])
         if cfg.max_minutes and time.time() - t0 > 60.0 * cfg.max_minutes:
@@ -318,9 +304,12 @@ def train(cfg: TrainConfig) -> Path:
         if cfg.patience and epoch + 1 - best_epoch >= cfg.patience:
             print(f"early stop: no better val ADE for {cfg.patience} epochs (best epoch {best_epoch})")
             break
-    # Record the full budget in the selected checkpoint.
-    final = load_model(out)
-    meta = checkpoint_meta(out)
+    if best_epoch < 0:
+        vals = [h["val_ade"] for h in history]
+        raise ValueError(f"no epoch gave a finite val ADE ({vals}); {out} left as it was")
+    # Record the full budget and the sample scale in the selected checkpoint, then put it in place.
+    final = load_model(work, verify_manifest=False)
+    meta = checkpoint_meta(work)
     meta.update(
         {
             "epochs_run": len(history),
@@ -330,10 +319,10 @@ def train(cfg: TrainConfig) -> Path:
             "history": history,
         }
     )
-    save_checkpoint(out, final, meta)
-    scale = calibrate_sampling(out, val_w)
-    if is_shipped(out):
-        update_manifest([out.name])
+    meta.update(_calibrate(final, val_w))
+    scale = final.config.sample_scale
+    save_checkpoint(work, final, meta)
+    install_checkpoint(work, out)
     print(f"saved {out} (best epoch {best_epoch}, val ADE/FDE {best[0]:.3f}/{best[1]:.3f}), scale {scale}")
     return out
 

@@ -1,10 +1,12 @@
 """Observation wrapper adding predicted pedestrian paths from a trained trajectory predictor.
 
-Contract with the base env: its observation space is a ``spaces.Dict`` with
+Contract with the base env (keys and columns named in `crossing_env.observation`): its observation space
+is a ``spaces.Dict`` with
 
-* ``"pedestrians"`` ``(K, F)`` float32, column 0 a presence flag (1 present, 0 padding);
-* ``"pedestrian_history"`` ``(K, 8, 2)`` float32, each slot's last 8 positions 0.4 s apart, oldest first,
-  in the observation's (ego) frame, metres.
+* ``"pedestrians"`` ``(K, F)`` float32, column `PedestrianColumn.PRESENCE` a presence flag (1 present,
+  0 padding);
+* ``"pedestrian_history"`` ``(K, 8, 2)`` float32, each slot's last 8 positions `HISTORY_INTERVAL` (0.4 s)
+  apart, oldest first, in the observation's (ego) frame, metres.
 
 The wrapper adds ``"predicted_paths"`` ``(K, 12, 2)`` (most-likely path, same frame, zeros for absent slots)
 and, with ``num_samples > 0``, ``"predicted_samples"`` ``(K, S, 12, 2)``. All present pedestrians form one
@@ -39,11 +41,19 @@ import numpy as np
 import torch
 from gymnasium import spaces
 
+from crossing_env.observation import (
+    PEDESTRIAN_HISTORY_KEY,
+    PEDESTRIANS_KEY,
+    PREDICTED_PATHS_KEY,
+    PREDICTED_SAMPLES_KEY,
+    PedestrianColumn,
+    PointColumn,
+)
 from predictors.baselines import cvm, cvm_samples
+from predictors.checkpoints import WEIGHTS_DIR, load_model
 from predictors.data import OBS_LEN, PRED_LEN
 from predictors.fast_inference import FastPredictor
 from predictors.models import MODEL_KINDS, SocialRecurrent
-from predictors.train import WEIGHTS_DIR, load_model
 
 
 def _one_thread_after_fork() -> None:
@@ -110,13 +120,16 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
         gym.utils.RecordConstructorArgs.__init__(self, model=str(model), num_samples=num_samples)
         gym.ObservationWrapper.__init__(self, env)
         space = env.observation_space
-        if not isinstance(space, spaces.Dict) or "pedestrians" not in space.spaces:
+        if not isinstance(space, spaces.Dict) or PEDESTRIANS_KEY not in space.spaces:
             raise ValueError(
-                f"TrajectoryPrediction needs a Dict observation space with 'pedestrians', got {space}"
+                f"TrajectoryPrediction needs a Dict observation space with {PEDESTRIANS_KEY!r}, got {space}"
             )
-        hist = space.spaces.get("pedestrian_history")
-        if not isinstance(hist, spaces.Box) or len(hist.shape) != 3 or hist.shape[1:] != (OBS_LEN, 2):
-            raise ValueError(f"observation 'pedestrian_history' must be a Box (K, {OBS_LEN}, 2), got {hist}")
+        hist = space.spaces.get(PEDESTRIAN_HISTORY_KEY)
+        xy = len(PointColumn)
+        if not isinstance(hist, spaces.Box) or len(hist.shape) != 3 or hist.shape[1:] != (OBS_LEN, xy):
+            raise ValueError(
+                f"observation {PEDESTRIAN_HISTORY_KEY!r} must be a Box (K, {OBS_LEN}, {xy}), got {hist}"
+            )
         if num_samples < 0:
             raise ValueError(f"num_samples must be >= 0, got {num_samples}")
         self.num_slots = hist.shape[0]
@@ -126,12 +139,12 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
         bound = float(max(np.abs(hist.low).max(), np.abs(hist.high).max())) + PRED_LEN * MAX_STEP
         self.bound = np.float32(bound) if np.isfinite(bound) else np.float32(np.finfo(np.float32).max)
         new = dict(space.spaces)
-        new["predicted_paths"] = spaces.Box(
-            -self.bound, self.bound, (self.num_slots, PRED_LEN, 2), np.float32
+        new[PREDICTED_PATHS_KEY] = spaces.Box(
+            -self.bound, self.bound, (self.num_slots, PRED_LEN, xy), np.float32
         )
         if num_samples:
-            new["predicted_samples"] = spaces.Box(
-                -self.bound, self.bound, (self.num_slots, num_samples, PRED_LEN, 2), np.float32
+            new[PREDICTED_SAMPLES_KEY] = spaces.Box(
+                -self.bound, self.bound, (self.num_slots, num_samples, PRED_LEN, xy), np.float32
             )
         self.observation_space = spaces.Dict(new)
         self._generator = torch.Generator().manual_seed(0)
@@ -176,15 +189,16 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
 
     def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Predict the paths of the present pedestrian slots (batched over the slots)."""
-        present = np.flatnonzero(np.asarray(observation["pedestrians"])[:, 0] > 0.5)
-        paths = np.zeros((self.num_slots, PRED_LEN, 2), np.float32)
+        peds = np.asarray(observation[PEDESTRIANS_KEY])
+        present = np.flatnonzero(peds[:, PedestrianColumn.PRESENCE] > 0.5)
+        paths = np.zeros((self.num_slots, PRED_LEN, len(PointColumn)), np.float32)
         samples = (
-            np.zeros((self.num_slots, self.num_samples, PRED_LEN, 2), np.float32)
+            np.zeros((self.num_slots, self.num_samples, PRED_LEN, len(PointColumn)), np.float32)
             if self.num_samples
             else None
         )
         if len(present):
-            hist = np.asarray(observation["pedestrian_history"], dtype=np.float32)[present]
+            hist = np.asarray(observation[PEDESTRIAN_HISTORY_KEY], dtype=np.float32)[present]
             match = None
             if samples is None and self._anchor is not None:
                 match = match_translated(hist, self._anchor[0])
@@ -201,7 +215,7 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
             if samples is not None and s is not None:
                 samples[present] = np.nan_to_num(s)
         out = dict(observation)
-        out["predicted_paths"] = np.clip(paths, -self.bound, self.bound)
+        out[PREDICTED_PATHS_KEY] = np.clip(paths, -self.bound, self.bound)
         if samples is not None:
-            out["predicted_samples"] = np.clip(samples, -self.bound, self.bound)
+            out[PREDICTED_SAMPLES_KEY] = np.clip(samples, -self.bound, self.bound)
         return out

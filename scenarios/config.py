@@ -13,6 +13,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Literal
 
+from crossing_common.cadence import HISTORY_INTERVAL
+
 CrossingKind = Literal["zebra", "signalised", "none"]
 PhaseDistribution = Literal["classical", "uniform", "normal"]
 
@@ -403,10 +405,11 @@ class EnvConfig:
     """Metres of road shown across the rendered frame, centred on the ego."""
 
     def __post_init__(self) -> None:
-        steps = 0.4 / self.dt if self.dt > 0 else 0.0
+        steps = HISTORY_INTERVAL / self.dt if self.dt > 0 else 0.0
         if not (self.dt > 0 and abs(steps - round(steps)) < 1e-9):
             raise ValueError(
-                f"EnvConfig.dt must be > 0 and divide 0.4 s (e.g. 0.05, 0.1, 0.2), got {self.dt!r}"
+                f"EnvConfig.dt must be > 0 and divide {HISTORY_INTERVAL} s (e.g. 0.05, 0.1, 0.2),"
+                f" got {self.dt!r}"
             )
         if not self.max_substep_displacement > 0:
             raise ValueError(

@@ -18,7 +18,7 @@ def _help(parser, argv: list[str], capsys) -> str:
     ("name", "argv", "needles"),
     [
         ("eval", [], ["(default: 5)", "(default: 2024)", "(default: s-cgru)", "yielding"]),
-        ("replay", ["record"], ["(default: constant)", "{classical,qlb,none}"]),
+        ("replay", ["record"], ["(default: constant)", "{classical,oracle,qlb,none}"]),
         ("replay", ["scene"], ["which recording set", "(default: s-cgru)", "--fallback-cvm"]),
         ("replay", ["screenshot"], ["(default: 9877)", "(default: 500)"]),
         ("replay", ["video"], ["(default: 10)", ".mp4", ".gif"]),
@@ -41,3 +41,19 @@ def test_train_help_lists_models_and_scenes(capsys):
     text = " ".join(capsys.readouterr().out.split())
     assert "{s-cgru,s-gru,s-lstm,lstm}" in text and "zara2" in text and "(default: 20)" in text
     assert "``" not in text and "(default: )" not in text
+
+
+def test_ppo_example_help_shows_defaults(capsys, monkeypatch):
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "examples" / "ppo_crossing.py"
+    spec = importlib.util.spec_from_file_location("ppo_crossing_help", path)
+    module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, module)  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    with pytest.raises(SystemExit):
+        module.parse_args(["--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "(default: 200000)" in text and "(default: 4)" in text and "(default: runs/ppo)" in text

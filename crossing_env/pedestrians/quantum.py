@@ -1,7 +1,8 @@
-"""Quantum-like Bayesian (QLB) probability maths: interference, the similarity heuristic, force updates.
+"""Quantum-like Bayesian (QLB) probability maths: interference and the similarity heuristic.
 
-The simulated pedestrians decide with it (`crossing_env.pedestrians.behaviour`) and the crossing-intention
-predictor builds its network on it (`predictors.qlb`), so it lives here, in the simulator's layer, once.
+The simulated pedestrians decide with it (`crossing_env.pedestrians.crossing_decisions`) and the
+crossing-intention predictor builds its network on it (`predictors.qlb`), so it lives here, in the
+simulator's layer, once.
 
 The method follows C. Moreira and A. Wichert, "Quantum-Like Bayesian Networks for Modeling Decision
 Making", Front. Psychol. 7:11 (2016) (below: M&W 2016), as used by Q. Song et al., "Research on quantum
@@ -13,8 +14,8 @@ the query values (alpha). With ``cos = 0`` everything collapses to the classical
 
 Vectorised for the world's hot path (many pedestrians per step): :func:`similarity_phase`,
 :func:`interference_probability`, :func:`pairwise_interference_probability`,
-:func:`disjunction_probabilities` and the scalar :func:`disjunction_probability`; Song 2022's case 2
-force-intensity update (:func:`updated_force_intensity`).
+:func:`disjunction_probabilities` and the scalar :func:`disjunction_probability`. Song 2022's case 2
+force-intensity update built on them is `crossing_env.pedestrians.force_update`.
 
 Departures from the papers (each also noted where it happens):
 
@@ -24,24 +25,18 @@ Departures from the papers (each also noted where it happens):
   ``cos(theta) = 0``, i.e. the classical result. When interference cancels both scores down to rounding
   noise (``T + F ~ 0``) we also return the classical result instead of dividing noise by noise.
 * How Song 2022 update force intensities is not documented in a form we could verify; the mapping
-  (:class:`ForceUpdateConfig`) is our design.
+  (`crossing_env.pedestrians.force_update.ForceUpdateConfig`) is our design.
 """
 
 from __future__ import annotations
 
-import functools
-from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
-    "PED_PED_INTENSITY",
-    "VEHICLE_PED_INTENSITY",
-    "ForceUpdateConfig",
     "Interference",
-    "classical_updated_force_intensity",
     "disjunction_probabilities",
     "disjunction_probability",
     "heuristic_rule",
@@ -50,7 +45,6 @@ __all__ = [
     "similarity_geometry",
     "similarity_phase",
     "triangle_angles",
-    "updated_force_intensity",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -395,129 +389,3 @@ def disjunction_probability(
         ``Pr(query)`` in [0, 1].
     """
     return float(disjunction_probabilities(p_true_given_a, p_true_given_b, prior_a, theta))
-
-
-# ---------------------------------------------------------------------------------------------------------
-# Song 2022, Case 2: social-force intensity updated by others' irrational behaviour
-# ---------------------------------------------------------------------------------------------------------
-PED_PED_INTENSITY = 0.42
-"""Classical calibration of the pedestrian-pedestrian social-force intensity in Song 2022, Case 2."""
-VEHICLE_PED_INTENSITY = 0.71
-"""Classical calibration of the vehicle-pedestrian social-force intensity in Song 2022, Case 2."""
-
-
-@dataclass(frozen=True)
-class ForceUpdateConfig:
-    """Our design for the force-intensity update (Song 2022 do not give theirs in a checkable form).
-
-    Hidden cause R: "the agent I interact with behaves irrationally", prior ``P(R) = f``, the observed
-    fraction of irrational behaviour. Query K: "treat that agent as a hazard". The intensity is
-
-        ``base * (1 + gain * (P(K) - P(K | rational)) / (P(K | irrational) - P(K | rational)))``
-
-    which is ``base`` at ``f = 0`` (the classical calibration), ``base * (1 + gain)`` at ``f = 1``, a straight
-    line in between for the classical P(K) and a bent curve for the QLB P(K).
-
-    The phase is set by the similarity heuristic at the neutral prior :attr:`phase_prior` (the setting in
-    which M&W 2016 tuned its thresholds) and then kept for every f. Applying the heuristic at the actual,
-    skewed prior would hit its ``theta = pi`` branch for small f and send the intensity to almost 0 for a
-    few irrational agents (our QLB notes, Section 5), which is no use in a force model.
-    """
-
-    hazard_given_rational: float = 0.2
-    """``P(K | agent rational)``: vigilance toward a well-behaved agent."""
-    hazard_given_irrational: float = 0.8
-    """``P(K | agent irrational)``: vigilance toward an agent seen to break the rules; above the former."""
-    gain: float = 1.0
-    """Relative intensity increase when every observed agent behaves irrationally (1.0 doubles it)."""
-    phase_prior: float = 0.5
-    """Prior of R at which the heuristic sets the phase."""
-
-    def __post_init__(self) -> None:
-        for name in ("hazard_given_rational", "hazard_given_irrational", "phase_prior"):
-            v = getattr(self, name)
-            if not 0.0 <= v <= 1.0:
-                raise ValueError(f"ForceUpdateConfig.{name} must be in [0, 1], got {v}")
-        if not self.hazard_given_irrational > self.hazard_given_rational:
-            raise ValueError(
-                "ForceUpdateConfig.hazard_given_irrational must exceed hazard_given_rational, got "
-                f"{self.hazard_given_irrational} <= {self.hazard_given_rational}"
-            )
-        if not (np.isfinite(self.gain) and self.gain >= 0.0):
-            raise ValueError(f"ForceUpdateConfig.gain must be finite and >= 0, got {self.gain}")
-
-    def heuristic_phase(self) -> float:
-        """The similarity-heuristic phase at :attr:`phase_prior` (radians); cached per config."""
-        return _force_phase(self)
-
-
-@functools.lru_cache(maxsize=64)
-def _force_phase(cfg: ForceUpdateConfig) -> float:
-    """Heuristic phase of a force-update config at its neutral prior (cached: called every env step)."""
-    w = cfg.phase_prior
-    ki, kr = cfg.hazard_given_irrational, cfg.hazard_given_rational
-    return float(similarity_phase([w * ki, (1.0 - w) * kr], [w * (1.0 - ki), (1.0 - w) * (1.0 - kr)]))
-
-
-def _check_base(base: ArrayLike) -> FloatArray:
-    """Reject negative or non-finite base intensities."""
-    b = np.asarray(base, dtype=np.float64)
-    if not np.all(np.isfinite(b)) or np.any(b < 0.0):
-        raise ValueError(f"base intensity must be finite and non-negative, got {base!r}")
-    return b
-
-
-def _intensity(base: ArrayLike, p_hazard: FloatArray, cfg: ForceUpdateConfig) -> FloatArray:
-    """Map ``P(K)`` to an intensity (see :class:`ForceUpdateConfig`), floored at 0."""
-    kr, ki = cfg.hazard_given_rational, cfg.hazard_given_irrational
-    scale = 1.0 + cfg.gain * (p_hazard - kr) / (ki - kr)
-    return _check_base(base) * np.maximum(scale, 0.0)
-
-
-def classical_updated_force_intensity(
-    base: ArrayLike, irrational_fraction: ArrayLike, config: ForceUpdateConfig | None = None
-) -> FloatArray:
-    """Classical counterpart of :func:`updated_force_intensity`: a straight line in the irrational fraction.
-
-    Args:
-        base: Classically calibrated intensity.
-        irrational_fraction: Observed fraction of irrational behaviour of others, in [0, 1].
-        config: The update's CPT; defaults to ``ForceUpdateConfig()``.
-
-    Returns:
-        Updated intensity, broadcast shape of the inputs.
-    """
-    cfg = config or ForceUpdateConfig()
-    f = _check_unit("irrational_fraction", irrational_fraction)
-    return _intensity(base, f * cfg.hazard_given_irrational + (1.0 - f) * cfg.hazard_given_rational, cfg)
-
-
-def updated_force_intensity(
-    base: ArrayLike,
-    irrational_fraction: ArrayLike,
-    theta: ArrayLike | None = None,
-    config: ForceUpdateConfig | None = None,
-) -> FloatArray:
-    """Social-force intensity after seeing a fraction of others behave irrationally (QLB update), vectorised.
-
-    The QLB hazard probability (disjunction over the unobserved "is this agent irrational?" cause) mapped
-    to an intensity as in :class:`ForceUpdateConfig` (our design; Song 2022, Figures 10-11, show such
-    update curves for the two calibrated intensities). Equals ``base`` at fraction 0 and
-    ``base * (1 + gain)`` at fraction 1, and departs from the classical straight line in between.
-
-    Args:
-        base: Classically calibrated intensity, e.g. :data:`PED_PED_INTENSITY` or
-            :data:`VEHICLE_PED_INTENSITY`.
-        irrational_fraction: Observed fraction of irrational behaviour of others, in [0, 1].
-        theta: Phase in radians, or None for the heuristic phase of :meth:`ForceUpdateConfig.heuristic_phase`.
-        config: The update's CPT; defaults to ``ForceUpdateConfig()``.
-
-    Returns:
-        Updated intensity, broadcast shape of ``base`` and ``irrational_fraction``.
-    """
-    cfg = config or ForceUpdateConfig()
-    th = cfg.heuristic_phase() if theta is None else theta
-    p = disjunction_probabilities(
-        cfg.hazard_given_irrational, cfg.hazard_given_rational, irrational_fraction, th
-    )
-    return _intensity(base, p, cfg)

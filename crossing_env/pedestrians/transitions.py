@@ -19,8 +19,6 @@ INACTIVE, APPROACHING, WAITING, CROSSING, LEAVING = (int(state) for state in Ped
 HESITATES, TURNS_BACK = 1, 2
 """Flags of the irrational acts a crossing pedestrian can start in a step."""
 
-HISTORY_INTERVAL = 0.4
-"""Seconds between history samples: the ETH/UCY cadence trajectory predictors are trained on."""
 KERB_STANDOFF = 0.45
 """Distance in metres from the kerb line at which a waiting pedestrian stands."""
 ARRIVAL_TOLERANCE = 0.35

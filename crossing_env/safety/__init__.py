@@ -1,7 +1,9 @@
 """Ground-truth safety measures shared by the env's reward and the evaluator.
 
 Surrogate-safety geometry (TTC, DRAC, separation, occupancy) and the per-episode accumulator of TTC, PET,
-braking, yield compliance and delay.
+braking, yield compliance and delay. The quantities both need every step (yield obligations, TTC, the
+conflict-area and braking tests, separation) are computed once by the env (`SafetyMonitor`) and attached
+to the step's ground truth as a `StepSafety`, which `EpisodeMetrics` reuses.
 """
 
 from crossing_env.safety.episode import EpisodeMetrics
@@ -15,7 +17,8 @@ from crossing_env.safety.geometry import (
     rect_occupancy_interval,
     time_to_collision,
 )
-from crossing_env.safety.results import EpisodeResult, MetricsConfig, json_safe
+from crossing_env.safety.results import DEFAULT_METRICS, EpisodeResult, MetricsConfig, json_safe
+from crossing_env.safety.step import SafetyMonitor, StepSafety
 from crossing_env.safety.yielding import (
     YieldTracker,
     ego_in_conflict_area,
@@ -25,9 +28,12 @@ from crossing_env.safety.yielding import (
 )
 
 __all__ = [
+    "DEFAULT_METRICS",
     "EpisodeMetrics",
     "EpisodeResult",
     "MetricsConfig",
+    "SafetyMonitor",
+    "StepSafety",
     "YieldTracker",
     "box_box_separation",
     "box_circle_separation",

@@ -1,24 +1,28 @@
 """Safety and efficiency of one episode, accumulated from the world's ground truth, never from observations.
 
-Definitions follow `shared/docs/safety-metrics.md` (SUMO SSM device names and defaults where they exist):
-time to collision (TTC), post-encroachment time (PET), deceleration rate to avoid a crash (DRAC), minimum
-separation, hard braking, yield compliance at the crossing, ego delay, time to pass, pedestrian waiting
-time and collisions. Safety and efficiency are reported together: a car that never moves is "safe".
+Definitions follow the surrogate safety measures of SUMO's SSM device (Eclipse SUMO documentation,
+"Simulation/Output/SSM Device"), with its names and defaults where they exist: time to collision (TTC),
+post-encroachment time (PET), deceleration rate to avoid a crash (DRAC), minimum separation, hard braking,
+yield compliance at the crossing, ego delay, time to pass, pedestrian waiting time and collisions. Safety
+and efficiency are reported together: a car that never moves is "safe".
 
 `EpisodeMetrics` is a per-step accumulator fed with `GroundTruth` snapshots, returning an `EpisodeResult`
-(`crossing_env.safety.results`); the geometry is in `crossing_env.safety.geometry`; aggregation across
-episodes lives in `crossing_eval.statistics`.
+(`crossing_env.safety.results`); the geometry is in `crossing_env.safety.geometry`, the ego–vehicle
+measures in `crossing_env.safety.following`, the quantities shared with the env's reward in
+`crossing_env.safety.step`; aggregation across episodes lives in `crossing_eval.statistics`.
 """
 
 from __future__ import annotations
 
 import math
-from typing import ClassVar
 
 import numpy as np
 
+from crossing_env.safety.following import vehicle_measures
 from crossing_env.safety.geometry import _crossing_drac_scalar, _slabs
-from crossing_env.safety.results import EpisodeResult, MetricsConfig
+from crossing_env.safety.pedestrian_table import PedestrianTable
+from crossing_env.safety.results import DEFAULT_METRICS, EpisodeResult, MetricsConfig
+from crossing_env.safety.step import StepSafety, min_pedestrian_separation
 from crossing_env.safety.stops import UnneededStops
 from crossing_env.safety.yielding import (
     YieldTracker,
@@ -32,57 +36,7 @@ from scenarios.config import ScenarioConfig
 __all__ = ["EpisodeMetrics"]
 
 _INF = math.inf
-
-
-# ---------------------------------------------------------------------------------------------------------
-# Per-pedestrian state table (ids → rows), vectorised
-# ---------------------------------------------------------------------------------------------------------
-
-_NO_STATE = -1
 _APPROACHING, _WAITING, _CROSSING = int(PedState.APPROACHING), int(PedState.WAITING), int(PedState.CROSSING)
-
-
-class _PedTable:
-    """Rows of per-pedestrian episode state, keyed by id; lookups are vectorised (sorted ids)."""
-
-    _FLOAT_COLS: ClassVar[tuple[str, ...]] = (
-        "last_entry",
-        "last_exit",
-        "wait_start",
-    )
-    _FILL: ClassVar[dict[str, float]] = {
-        "last_entry": -_INF,
-        "last_exit": -_INF,
-        "wait_start": math.nan,
-    }
-
-    def __init__(self) -> None:
-        self.ids = np.empty(0, dtype=np.int64)
-        self.in_ca = np.empty(0, dtype=bool)
-        self.prev_state = np.empty(0, dtype=np.int64)
-        for name in self._FLOAT_COLS:
-            setattr(self, name, np.empty(0, dtype=np.float64))
-
-    def rows(self, ids: np.ndarray) -> np.ndarray:
-        """Row index of every id, adding rows for ids seen for the first time."""
-        n = self.ids.shape[0]
-        pos = np.searchsorted(self.ids, ids)
-        if n == 0 or np.count_nonzero(self.ids[np.minimum(pos, n - 1)] != ids):
-            self._add(ids)
-            pos = np.searchsorted(self.ids, ids)
-        return pos
-
-    def _add(self, ids: np.ndarray) -> None:
-        new = np.setdiff1d(np.unique(ids), self.ids)
-        all_ids = np.concatenate([self.ids, new])
-        order = np.argsort(all_ids, kind="stable")
-        k = new.shape[0]
-        self.ids = all_ids[order]
-        self.in_ca = np.concatenate([self.in_ca, np.zeros(k, dtype=bool)])[order]
-        self.prev_state = np.concatenate([self.prev_state, np.full(k, _NO_STATE, dtype=np.int64)])[order]
-        for name in self._FLOAT_COLS:
-            col = np.concatenate([getattr(self, name), np.full(k, self._FILL[name])])[order]
-            setattr(self, name, col)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -110,9 +64,10 @@ class EpisodeMetrics:
     - Crossing DRAC: for each pedestrian whose constant-velocity disc (rectangle grown by its radius) will
       occupy the CA before the ego front reaches it and still occupy it then, `crossing_drac` of the ego
       with t_A = the pedestrian's exit time; pedestrians are never asked to brake (ego-first case unscored).
-    - Yield compliance (doc §7, simplified): only at a zebra, or at a signalised crossing while the
-      pedestrian signal is green. A pedestrian creates one obligation per episode when, with the ego front
-      farther than v²/(2·`yield_deceleration`) from the stop line, it is on the crossing in the ego's half
+    - Yield compliance (UK Highway Code rule 195, German StVO §26; simplified): only at a zebra, or at a
+      signalised crossing while the pedestrian signal is green. A pedestrian creates one obligation per
+      episode when, with the ego front farther than v²/(2·`yield_deceleration`) from the stop line, it is
+      on the crossing in the ego's half
       (or, with `far_half_counts`, in the other half walking towards it) or waiting at the kerb within
       `kerb_margin` of the crossing. The obligation is violated if the ego footprint is in the CA while it
       is open; it ends compliant when the pedestrian, having entered the ego's half, is outside it again
@@ -137,7 +92,7 @@ class EpisodeMetrics:
             raise ValueError(f"EpisodeMetrics: dt must be a positive finite number of seconds, got {dt!r}")
         self.scenario = scenario
         self.dt = float(dt)
-        self.config = config if config is not None else MetricsConfig()
+        self.config = config if config is not None else DEFAULT_METRICS
         self.reset()
 
     def reset(self) -> None:
@@ -192,7 +147,7 @@ class EpisodeMetrics:
         self._trigger_time = math.nan
         self._clear_time = math.nan
         self._waits: list[float] = []
-        self._peds = _PedTable()
+        self._peds = PedestrianTable()
         self._yield = YieldTracker(self.scenario.crossing.kind, self.dt, self.config)
         self._ca: ConflictArea | None = None
         self._ca_arrays: tuple[np.ndarray, np.ndarray] = (np.zeros(2), np.zeros(2))
@@ -203,8 +158,16 @@ class EpisodeMetrics:
     # -- per step -------------------------------------------------------------------------------------
 
     def update(self, gt: GroundTruth) -> None:
-        """Add one ground-truth snapshot (call once per environment step, in time order)."""
+        """Add one ground-truth snapshot (call once per environment step, in time order).
+
+        The step's TTC, separation, conflict-area and braking tests and yield obligations are taken from
+        `gt.safety` (computed once by the env for its reward) when that was computed with these thresholds
+        from the obligations this accumulator holds; otherwise they are computed here, by the same code.
+        """
         cfg = self.config
+        shared: StepSafety | None = gt.safety
+        if shared is not None and not shared.usable_by(self._yield):
+            shared = None
         t = float(gt.time)
         if t < self._last_t:
             raise ValueError(f"EpisodeMetrics.update: GroundTruth.time went backwards ({t} < {self._last_t})")
@@ -224,7 +187,7 @@ class EpisodeMetrics:
 
         # Braking and comfort.
         acc = float(gt.ego_acceleration)
-        hard = is_hard_braking(gt, cfg)
+        hard = shared.hard_braking if shared is not None else is_hard_braking(gt, cfg)
         self._hard_steps += hard
         self._hard_events += hard and not self._was_hard
         self._was_hard = hard
@@ -244,7 +207,7 @@ class EpisodeMetrics:
         self._last_t, self._last_x, self._last_front, self._last_rear = t, ex, front, rear
 
         # Ego occupancy of the conflict area.
-        ego_in = ego_in_conflict_area(gt)
+        ego_in = shared.ego_in_conflict_area if shared is not None else ego_in_conflict_area(gt)
         ego_entered = ego_in and not self._ego_in_ca
         if not ego_in and self._ego_in_ca:
             self._ego_last_exit = t
@@ -275,32 +238,21 @@ class EpisodeMetrics:
         if gt.vehicle_ids.shape[0]:
             self._update_vehicles(gt, evx, self._half)
         if gt.pedestrian_ids.shape[0]:
-            self._update_pedestrians(gt, t, ego_in, ego_entered, prev_ego_entry, front, speed, self._half)
+            self._update_pedestrians(
+                gt, t, ego_in, ego_entered, prev_ego_entry, front, speed, self._half, shared
+            )
         self._stops.update(gt, speed, front, rear)
         self._time = t
 
     def _update_vehicles(self, gt: GroundTruth, evx: float, half: np.ndarray) -> None:
         """Following TTC / DRAC against vehicles ahead in the ego's lane, and box–box separation."""
-        q = gt.vehicle_positions - gt.ego_position
-        reach = half + 0.5 * gt.vehicle_sizes  # half extents of the Minkowski sum of both boxes
-        d = np.abs(q) - reach
-        dx, dy = d[:, 0], d[:, 1]
-        sep = np.hypot(np.maximum(dx, 0.0), np.maximum(dy, 0.0)) + np.minimum(np.maximum(dx, dy), 0.0)
-        min_sep = float(sep.min())
+        min_sep, following = vehicle_measures(gt, evx, half)
         if min_sep < self._min_sep_veh:
             self._min_sep_veh = min_sep
-        ahead = (q[:, 0] > 0.0) & (dy < 0.0)  # in front and overlapping laterally: same lane
-        if np.count_nonzero(ahead):
-            gap = dx[ahead]  # bumper-to-bumper distance (q_x > 0)
-            closing = evx - gt.vehicle_velocities[ahead, 0]
-            fast = closing > 0.0
-            if np.count_nonzero(fast):
-                gap, closing = gap[fast], closing[fast]
-                with np.errstate(divide="ignore"):
-                    ttc = float((np.maximum(gap, 0.0) / closing).min())
-                    drac = float((0.5 * closing * closing / np.maximum(gap, 0.0)).max())
-                self._min_ttc_veh = min(self._min_ttc_veh, ttc)
-                self._max_drac_follow = max(self._max_drac_follow, drac)
+        if following is not None:
+            ttc, drac = following
+            self._min_ttc_veh = min(self._min_ttc_veh, ttc)
+            self._max_drac_follow = max(self._max_drac_follow, drac)
 
     def _conflict_arrays(self, ca: ConflictArea) -> tuple[np.ndarray, np.ndarray]:
         """Low and high corners of the conflict area as arrays, cached across steps."""
@@ -319,8 +271,12 @@ class EpisodeMetrics:
         front: float,
         speed: float,
         half: np.ndarray,
+        shared: StepSafety | None,
     ) -> None:
-        """Per-pedestrian TTC, separation, DRAC, PET, yielding and waiting, vectorised over pedestrians."""
+        """Per-pedestrian TTC, separation, DRAC, PET, yielding and waiting, vectorised over pedestrians.
+
+        `shared`: the env's quantities for this snapshot, when usable (see `update`).
+        """
         cfg = self.config
         dt = self.dt
         ca = gt.conflict_area
@@ -332,11 +288,10 @@ class EpisodeMetrics:
         ca_lo, ca_hi = self._conflict_arrays(ca)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             # Separation: signed distance from each disc to the ego box.
-            q = pp - gt.ego_position
-            d = np.abs(q) - half
-            sep = np.hypot(np.maximum(d[:, 0], 0.0), np.maximum(d[:, 1], 0.0))
-            sep += np.minimum(np.maximum(d[:, 0], d[:, 1]), 0.0) - rad
-            min_sep = float(sep.min())
+            if shared is not None:
+                min_sep = shared.min_separation
+            else:
+                min_sep = min_pedestrian_separation(gt, half)
             self.step_separation = min_sep
             if min_sep < self._min_sep:
                 self._min_sep = min_sep
@@ -344,7 +299,7 @@ class EpisodeMetrics:
                 self._clearance_time += dt
             # TTC: exact box–disc, only while the ego moves.
             if speed > cfg.ttc_min_ego_speed:
-                min_ttc = min_pedestrian_ttc(gt, cfg, half)
+                min_ttc = shared.min_ttc if shared is not None else min_pedestrian_ttc(gt, cfg, half)
                 self.step_ttc = min_ttc
                 if min_ttc < self._min_ttc:
                     self._min_ttc = min_ttc
@@ -380,7 +335,10 @@ class EpisodeMetrics:
         if np.count_nonzero(changed):
             self._update_waits(t, rows, states, prev, changed)
 
-        self._yield.update(gt, ego_in)
+        if shared is not None:
+            self._yield.state = shared.yield_after
+        else:
+            self._yield.update(gt, ego_in)
 
     def _update_pet(
         self,

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["EpisodeResult", "MetricsConfig", "json_safe"]
+__all__ = ["DEFAULT_METRICS", "EpisodeResult", "MetricsConfig", "json_safe"]
 
 _INF = math.inf
 
@@ -40,7 +40,7 @@ class MetricsConfig:
     critical_pet: float = 1.5
     """PET (s) below which an encounter is critical (Peesapati 2018)."""
     clearance: float = 1.0
-    """Footprint distance (m) below which the ego is too close to a pedestrian (doc §5: 1–2 m typical)."""
+    """Footprint distance (m) below which the ego is too close to a pedestrian (1–2 m is typical)."""
     ttc_min_ego_speed: float = 5e-3
     """TTC is not evaluated while the ego is slower than this (m/s), as nuPlan: a stopped car is hit."""
     delay_margin: float = 5.0
@@ -67,6 +67,10 @@ class MetricsConfig:
     stop_attribution_lateral: float = 3.0
     """... and within this distance (m) of a kerb, on the sidewalk."""
 
+
+DEFAULT_METRICS = MetricsConfig()
+"""The default thresholds, one shared instance (the env's reward and `EpisodeMetrics` use it when given no
+config, so checking that both use the same thresholds is an identity test)."""
 
 # Fields added later, with defaults: older logs without them still load.
 _OPTIONAL_FIELDS = frozenset({"stops", "unneeded_stops"})

@@ -12,14 +12,18 @@ Who can create an obligation is decided in one place, `obligation_candidates`.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
-from crossing_env.safety.geometry import _box_disc_ttc
-from crossing_env.safety.results import MetricsConfig
+from crossing_env.safety.geometry import min_box_disc_ttc
+from crossing_env.safety.results import DEFAULT_METRICS, MetricsConfig
 from crossing_env.types import GroundTruth, PedState
 
 __all__ = [
+    "EMPTY_YIELD_STATE",
+    "YieldState",
     "YieldTracker",
     "ego_in_conflict_area",
     "is_hard_braking",
@@ -30,6 +34,38 @@ __all__ = [
 OPEN, COMPLIANT, VIOLATED, WAIVED, DECLINED = 1, 2, 3, 4, 5
 """Obligation states (0: none yet)."""
 _WAITING, _CROSSING = int(PedState.WAITING), int(PedState.CROSSING)
+
+
+class YieldState(NamedTuple):
+    """The yield obligations of an episode so far, one row per pedestrian id (sorted by id).
+
+    Immutable by convention: `YieldTracker.update` builds a new state instead of writing into the arrays, so
+    a state can be handed on (`crossing_env.safety.StepSafety`) and compared by identity.
+    """
+
+    ids: np.ndarray
+    """(n,) int64 pedestrian ids, sorted."""
+    status: np.ndarray
+    """(n,) int8 obligation state: 0 none yet, then OPEN, COMPLIANT, VIOLATED, WAIVED or DECLINED."""
+    entered_half: np.ndarray
+    """(n,) bool: entered the ego's half while the obligation was open."""
+    offer_time: np.ndarray
+    """(n,) float64 seconds the ego has stood offering the way."""
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a.setflags(write=False)
+    return a
+
+
+EMPTY_YIELD_STATE = YieldState(
+    _frozen(np.empty(0, dtype=np.int64)),
+    _frozen(np.empty(0, dtype=np.int8)),
+    _frozen(np.empty(0, dtype=bool)),
+    _frozen(np.empty(0, dtype=np.float64)),
+)
+"""The state of every new `YieldTracker` (one shared object, so trackers that saw the same steps from the
+start hold identical states)."""
 
 
 def obligation_candidates(gt: GroundTruth) -> np.ndarray:
@@ -64,16 +100,26 @@ def min_pedestrian_ttc(gt: GroundTruth, config: MetricsConfig, half: np.ndarray 
 
     `half` is the ego's half extents (taken from `gt.ego_size` when omitted).
     """
-    speed = math.hypot(float(gt.ego_velocity[0]), float(gt.ego_velocity[1]))
+    ev = gt.ego_velocity
+    speed = math.hypot(float(ev[0]), float(ev[1]))
     if not gt.pedestrian_ids.shape[0] or speed <= config.ttc_min_ego_speed:
         return math.inf
     if half is None:
-        half = 0.5 * np.asarray(gt.ego_size, dtype=np.float64)
-    q = gt.pedestrian_positions - gt.ego_position
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        return float(
-            _box_disc_ttc(q, gt.pedestrian_velocities - gt.ego_velocity, half, gt.pedestrian_radii).min()
-        )
+        hx, hy = 0.5 * float(gt.ego_size[0]), 0.5 * float(gt.ego_size[1])
+    else:
+        hx, hy = float(half[0]), float(half[1])
+    ep = gt.ego_position
+    return min_box_disc_ttc(
+        gt.pedestrian_positions,
+        gt.pedestrian_velocities,
+        gt.pedestrian_radii,
+        float(ep[0]),
+        float(ep[1]),
+        float(ev[0]),
+        float(ev[1]),
+        hx,
+        hy,
+    )
 
 
 class YieldTracker:
@@ -87,29 +133,53 @@ class YieldTracker:
         """Track obligations at a crossing of `crossing_kind` ('zebra', 'signalised' or 'none')."""
         self.kind = crossing_kind
         self.dt = float(dt)
-        self.config = config if config is not None else MetricsConfig()
-        self.ids = np.empty(0, dtype=np.int64)
-        self.status = np.empty(0, dtype=np.int8)
-        self.entered_half = np.empty(0, dtype=bool)
-        self.offer_time = np.empty(0, dtype=np.float64)
+        self.config = config if config is not None else DEFAULT_METRICS
+        self.state = EMPTY_YIELD_STATE
+        """The obligations so far; replaced (never modified) by each `update` that changes them."""
+
+    @property
+    def ids(self) -> np.ndarray:
+        """(n,) sorted ids of every pedestrian seen so far."""
+        return self.state.ids
+
+    @property
+    def status(self) -> np.ndarray:
+        """(n,) obligation state per id: 0 none yet, then OPEN, COMPLIANT, VIOLATED, WAIVED or DECLINED."""
+        return self.state.status
+
+    @property
+    def entered_half(self) -> np.ndarray:
+        """(n,) whether the pedestrian entered the ego's half while its obligation was open."""
+        return self.state.entered_half
+
+    @property
+    def offer_time(self) -> np.ndarray:
+        """(n,) seconds the ego has stood offering the way to the (waiting) pedestrian."""
+        return self.state.offer_time
 
     def _rows(self, ids: np.ndarray) -> np.ndarray:
-        n = self.ids.shape[0]
-        pos = np.searchsorted(self.ids, ids)
-        if n == 0 or np.count_nonzero(self.ids[np.minimum(pos, n - 1)] != ids):
-            new = np.setdiff1d(np.unique(ids), self.ids)
-            all_ids = np.concatenate([self.ids, new])
+        st = self.state
+        pos = _find_rows(st.ids, ids)
+        if pos.shape[0] != ids.shape[0]:  # ids seen for the first time: add rows (sorted by id)
+            new = np.setdiff1d(np.unique(ids), st.ids)
+            all_ids = np.concatenate([st.ids, new])
             order = np.argsort(all_ids, kind="stable")
             k = new.shape[0]
-            self.ids = all_ids[order]
-            self.status = np.concatenate([self.status, np.zeros(k, dtype=np.int8)])[order]
-            self.entered_half = np.concatenate([self.entered_half, np.zeros(k, dtype=bool)])[order]
-            self.offer_time = np.concatenate([self.offer_time, np.zeros(k)])[order]
-            pos = np.searchsorted(self.ids, ids)
+            st = self.state = YieldState(
+                all_ids[order],
+                np.concatenate([st.status, np.zeros(k, dtype=np.int8)])[order],
+                np.concatenate([st.entered_half, np.zeros(k, dtype=bool)])[order],
+                np.concatenate([st.offer_time, np.zeros(k)])[order],
+            )
+            pos = np.searchsorted(st.ids, ids)
         return pos
 
     def update(self, gt: GroundTruth, ego_in_ca: bool | None = None) -> int:
-        """Open, resolve and check obligations for one snapshot; returns the violations of this step."""
+        """Open, resolve and check obligations for one snapshot; returns the violations of this step.
+
+        The rules (see the module docstring and `EpisodeMetrics`) run in one compiled pass over the
+        pedestrians, `_update_obligations`.
+        """
         if self.kind == "none" or not gt.pedestrian_ids.shape[0]:
             return 0
         if ego_in_ca is None:
@@ -121,58 +191,40 @@ class YieldTracker:
         ca = gt.conflict_area
         front = float(gt.ego_position[0]) + 0.5 * gt.ego_size[0]
         speed = math.hypot(float(gt.ego_velocity[0]), float(gt.ego_velocity[1]))
-        status = self.status[rows]
-        open_ = status == OPEN
         dist = ca.stop_line_x - front
         can_open = may_open and dist > speed * speed / (2.0 * cfg.yield_deceleration)
-        may_owe = obligation_candidates(gt)
-        candidates = can_open and np.count_nonzero((gt.on_crossing | gt.waiting) & (status == 0) & may_owe)
-        if not candidates and not np.count_nonzero(open_):
-            return 0  # nothing open and nobody who could open an obligation now
-
-        px = gt.pedestrian_positions[:, 0]
-        py = gt.pedestrian_positions[:, 1]
-        in_half = gt.on_road & (py >= ca.half_y_min) & (py <= ca.half_y_max)
-        near = np.abs(px - 0.5 * (ca.x_min + ca.x_max)) <= 0.5 * (ca.x_max - ca.x_min) + cfg.kerb_margin
-        waiting = gt.waiting & near
-
-        # Resolve open obligations from the pedestrians' side.
-        entered_half = self.entered_half[rows] | (open_ & in_half)
-        cleared = open_ & entered_half & ~in_half
-        states = gt.pedestrian_states
-        gave_up = (states != _WAITING) & (states != _CROSSING) & ~gt.on_road  # walked off, never stepped on
-        dropped = open_ & ~entered_half & gave_up
-        status = np.where(cleared, COMPLIANT, np.where(dropped, WAIVED, status))
-
         # Declined offers: the ego stands before the crossing (at most `offer_distance` before the stop line,
         # or between the line and the crossing) while the pedestrian keeps waiting.
-        if speed <= cfg.offer_stop_speed and front <= ca.x_min and dist <= cfg.offer_distance:
-            offering = (status == OPEN) & waiting
-            if np.count_nonzero(offering):
-                r_off = rows[offering]
-                self.offer_time[r_off] += self.dt
-                status[offering] = np.where(
-                    self.offer_time[r_off] >= cfg.offer_timeout - 1e-9, DECLINED, OPEN
-                )
-
-        # Open new obligations while the ego can still stop comfortably before the stop line.
-        if can_open:
-            relevant = gt.on_crossing & in_half
-            if cfg.far_half_counts:
-                toward = (0.5 * (ca.half_y_min + ca.half_y_max) - py) * gt.pedestrian_velocities[:, 1] > 0.0
-                relevant |= gt.on_crossing & ~in_half & toward
-            new = (status == 0) & (relevant | waiting) & may_owe
-            status[new] = OPEN
-            entered_half |= new & in_half
-
-        # Violations: the ego occupies the conflict area while an obligation is open.
-        violated = 0
-        if ego_in_ca:
-            now_open = status == OPEN
-            violated = int(np.count_nonzero(now_open))
-            status[now_open] = VIOLATED
-        self.status[rows] = status
-        self.entered_half[rows] = entered_half
+        offering = speed <= cfg.offer_stop_speed and front <= ca.x_min and dist <= cfg.offer_distance
+        st = self.state
+        violated, status, entered, offer_time = _update_obligations(
+            st.status,
+            st.entered_half,
+            st.offer_time,
+            rows,
+            gt.pedestrian_positions,
+            gt.pedestrian_velocities,
+            gt.pedestrian_states,
+            gt.on_road,
+            gt.on_crossing,
+            gt.waiting,
+            obligation_candidates(gt),
+            bool(can_open),
+            bool(offering),
+            bool(ego_in_ca),
+            bool(cfg.far_half_counts),
+            ca.half_y_min,
+            ca.half_y_max,
+            0.5 * (ca.half_y_min + ca.half_y_max),
+            0.5 * (ca.x_min + ca.x_max),
+            0.5 * (ca.x_max - ca.x_min) + cfg.kerb_margin,
+            self.dt,
+            cfg.offer_timeout - 1e-9,
+        )
+        if status is not None:
+            self.state = YieldState(
+                st.ids, status, entered, offer_time if offer_time is not None else st.offer_time
+            )
         return violated
 
     def counts(self) -> tuple[int, int, int]:
@@ -180,3 +232,94 @@ class YieldTracker:
         s = self.status
         compliant = int(np.count_nonzero((s == OPEN) | (s == COMPLIANT) | (s == DECLINED)))
         return compliant, int(np.count_nonzero(s == VIOLATED)), int(np.count_nonzero(s == DECLINED))
+
+
+@njit(cache=True, nogil=True)
+def _find_rows(table: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """Row of each id in the sorted `table`; an empty array if any id is missing."""
+    pos = np.searchsorted(table, ids)
+    n = table.shape[0]
+    for i in range(ids.shape[0]):
+        if pos[i] >= n or table[pos[i]] != ids[i]:
+            return np.empty(0, dtype=pos.dtype)
+    return pos
+
+
+@njit(cache=True, nogil=True)
+def _update_obligations(
+    status_all: np.ndarray,
+    entered_all: np.ndarray,
+    offer_all: np.ndarray,
+    rows: np.ndarray,
+    positions: np.ndarray,
+    velocities: np.ndarray,
+    states: np.ndarray,
+    on_road: np.ndarray,
+    on_crossing: np.ndarray,
+    waiting_gt: np.ndarray,
+    may_owe: np.ndarray,
+    can_open: bool,
+    offering: bool,
+    ego_in_ca: bool,
+    far_half_counts: bool,
+    half_y_min: float,
+    half_y_max: float,
+    half_y_mid: float,
+    crossing_x_mid: float,
+    near_x: float,
+    dt: float,
+    offer_limit: float,
+) -> tuple[int, np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+    """One step of the yield rules for the pedestrians at `rows` of the obligation table.
+
+    Returns (violations, status, entered_half, offer_time): new full-table arrays (the inputs are never
+    written), or None where nothing changed (offer_time: where no offer clock ran).
+    """
+    n = rows.shape[0]
+    busy = False  # anything open, or anyone who could open an obligation now
+    for i in range(n):
+        s = status_all[rows[i]]
+        if s == OPEN or (can_open and s == 0 and (on_crossing[i] or waiting_gt[i]) and may_owe[i]):
+            busy = True
+            break
+    if not busy:
+        return 0, None, None, None
+    status = status_all.copy()
+    entered = entered_all.copy()
+    offer = offer_all
+    offered = False
+    violated = 0
+    for i in range(n):
+        r = rows[i]
+        s = status[r]
+        py = positions[i, 1]
+        in_half = on_road[i] and py >= half_y_min and py <= half_y_max
+        waiting = waiting_gt[i] and abs(positions[i, 0] - crossing_x_mid) <= near_x
+        was_open = s == OPEN
+        # Resolve open obligations from the pedestrians' side.
+        ent = entered[r] or (was_open and in_half)
+        if was_open and ent and not in_half:
+            s = COMPLIANT  # crossed, or turned back after entering the ego's half
+        elif was_open and not ent and states[i] != _WAITING and states[i] != _CROSSING and not on_road[i]:
+            s = WAIVED  # walked off, never stepped on
+        if offering and s == OPEN and waiting:
+            if not offered:
+                offer = offer_all.copy()
+                offered = True
+            offer[r] += dt
+            s = DECLINED if offer[r] >= offer_limit else OPEN
+        # Open new obligations while the ego can still stop comfortably before the stop line.
+        if can_open and s == 0 and may_owe[i]:
+            relevant = on_crossing[i] and in_half
+            if far_half_counts and on_crossing[i] and not in_half:
+                relevant = relevant or (half_y_mid - py) * velocities[i, 1] > 0.0
+            if relevant or waiting:
+                s = OPEN
+                ent = ent or in_half
+        # Violations: the ego occupies the conflict area while an obligation is open.
+        if ego_in_ca and s == OPEN:
+            violated += 1
+            s = VIOLATED
+        status[r] = s
+        entered[r] = ent
+    return violated, status, entered, offer if offered else None

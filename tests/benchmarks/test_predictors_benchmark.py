@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from predictors.checkpoints import WEIGHTS_DIR
 from predictors.data import SCENES, default_data_root
-from predictors.train import WEIGHTS_DIR
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = default_data_root()

@@ -38,3 +38,26 @@ class Coast:
 
     def __call__(self, obs):
         return np.full((*np.shape(obs["ego"])[:-1], 1), self.config.throttle, dtype=np.float32)
+
+
+class Fixed:
+    """A policy class with a no-argument constructor (no config, no scenario): built as ``Fixed()``."""
+
+    def __init__(self) -> None:
+        self.action = np.full(1, 0.05, dtype=np.float32)
+
+    def __call__(self, obs):
+        return self.action
+
+    def reset(self, seed=None):
+        """Stateless."""
+
+
+class NeedsThings:
+    """A plug-in whose constructor cannot be called by `make_policy`: it fails in the parent, exit 2."""
+
+    def __init__(self, weights_file) -> None:
+        self.weights_file = weights_file
+
+    def __call__(self, obs):
+        return np.zeros(1, np.float32)

@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 
 from crossing_eval.grid import group_rows, make_grid_tasks, parse_grid
+from crossing_eval.prediction_value import value_table
 from crossing_eval.tasks import EpisodeRecord, EpisodeTask
-from crossing_eval.value import value_table
 from tests.crossing_eval.test_eval import run_cli
 
 CHOICES = (("qlb", "classical", "none", "oracle"), ("s-cgru", "cvm", "none", "oracle"))

@@ -11,11 +11,12 @@ from pathlib import Path
 import pytest
 
 import crossing_eval.cli as cli
+from crossing_common.folders import write_marker
 from crossing_eval.compare import compare, load_run
 from crossing_eval.compare import main as compare_main
+from crossing_eval.report import scenario_labels
 from crossing_eval.runners import EpisodeFailed, RayConnectionError, check_ray_address, run_tasks
 from crossing_eval.statistics import censored_delay, newcombe_difference
-from crossing_eval.tables import scenario_labels
 from crossing_eval.tasks import EpisodeTask
 from scenarios import BUILTIN_DIR, ScenarioError, load_scenario
 
@@ -55,6 +56,7 @@ def test_rerun_replaces_the_folder_whole(first_run: Path, tmp_path: Path) -> Non
     (out / "worst").mkdir(parents=True)
     (out / "results.json").write_text("{}")
     (out / "worst" / "99_stale.json").write_text("{}")
+    write_marker(out, "crossing-eval")  # an earlier run's folder: every file listed in its marker
     assert cli.main([*TINY, "--policies", "yielding", "--out", str(out)]) == 0
     assert not (out / "worst" / "99_stale.json").exists()
     assert [p.name for p in tmp_path.iterdir()] == ["b"], "staging folder left behind"
@@ -64,6 +66,7 @@ def test_interrupted_write_leaves_the_previous_results(first_run: Path, tmp_path
     out = tmp_path / "c"
     out.mkdir()
     (out / "results.json").write_text('{"old": true}')
+    write_marker(out, "crossing-eval")
     records = run_tasks([EpisodeTask("zebra_case1", "constant_speed", 0, 1)], show_progress=False)
 
     def write_then_interrupt(records, summary, settings, folder):
@@ -74,7 +77,7 @@ def test_interrupted_write_leaves_the_previous_results(first_run: Path, tmp_path
     monkeypatch.setattr(cli, "write_outputs", write_then_interrupt)
     with pytest.raises(KeyboardInterrupt):
         cli.main([*TINY, "--out", str(out)])
-    assert [p.name for p in out.iterdir()] == ["results.json"]
+    assert sorted(p.name for p in out.iterdir()) == [".crossing-output.json", "results.json"]
     assert (out / "results.json").read_text() == '{"old": true}'
     assert [p.name for p in tmp_path.iterdir()] == ["c"]
 

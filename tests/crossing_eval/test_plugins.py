@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 import agents.registry as registry
-from agents import make_policy, policy_names, register_policy
+from agents import Policy, make_policy, policy_names, register_policy
+from agents.policy import FunctionPolicy
 from crossing_eval.cli import build_parser, main
 from crossing_eval.runners import run_tasks
 from crossing_eval.tasks import make_tasks
@@ -36,7 +37,9 @@ def sb3_zip(tmp_path_factory: pytest.TempPathFactory) -> Path:
         venv.step(np.zeros((1, 1), np.float32))  # some statistics to save
     model = PPO("MultiInputPolicy", venv, n_steps=32, batch_size=32, seed=0, device="cpu")
     model.save(out / "model.zip")
-    venv.save(str(out / "model.vecnormalize.pkl"))
+    from agents.sb3 import save_stats
+
+    save_stats(venv, out / "model.vecnormalize.npz")
     return out / "model.zip"
 
 
@@ -45,8 +48,11 @@ def test_module_attr_factory_and_class_protocol():
 
     obs = {"ego": np.zeros(6, np.float32)}
     assert make_policy(f"{PLUGIN}:gentle_brake")(obs)[0] == pytest.approx(-0.2)
-    coast = make_policy(f"{PLUGIN}:Coast", throttle=0.3)
-    assert isinstance(coast, Coast) and coast(obs)[0] == pytest.approx(0.3)
+    coast = make_policy(f"{PLUGIN}:Coast", throttle=0.3)  # no reset(): adapted as a stateless policy
+    assert isinstance(coast, FunctionPolicy) and isinstance(coast.function, Coast)
+    assert coast(obs)[0] == pytest.approx(0.3)
+    fixed = make_policy(f"{PLUGIN}:Fixed")  # a no-argument constructor, a full Policy: used as it is
+    assert isinstance(fixed, Policy) and fixed(obs)[0] == pytest.approx(0.05)
     with pytest.raises(ValueError, match="has no attribute 'nope'"):
         make_policy(f"{PLUGIN}:nope")
     with pytest.raises(ValueError, match="cannot import module"):
@@ -112,7 +118,7 @@ def test_bad_plugins_and_predictors_exit_2(tmp_path: Path, capsys):
 
 
 def test_predictor_takes_a_checkpoint_path():
-    from predictors.train import WEIGHTS_DIR
+    from predictors.checkpoints import WEIGHTS_DIR
 
     ckpt = WEIGHTS_DIR / "s-cgru_all.pt"
     rel = os.path.relpath(ckpt)

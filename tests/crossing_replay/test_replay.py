@@ -18,7 +18,7 @@ from rerun.chunk import RrdReader  # noqa: E402
 
 from crossing_replay.cli import main  # noqa: E402
 from crossing_replay.episode_log import load_episode_log, save_episode_log  # noqa: E402
-from crossing_replay.episodes import Frame, make_env, make_policy, run_episode  # noqa: E402
+from crossing_replay.episodes import Frame, make_policy, run_episode  # noqa: E402
 from crossing_replay.errors import ReplayError  # noqa: E402
 from crossing_replay.recorder import (  # noqa: E402
     EpisodeRecorder,
@@ -29,6 +29,7 @@ from crossing_replay.recorder import (  # noqa: E402
     replay_episode_log,
 )
 from crossing_replay.scene import _load_predictor, record_scene  # noqa: E402
+from rollout import make_env  # noqa: E402
 from scenarios.config import ScenarioConfig  # noqa: E402
 
 SCENARIO = "busy_zebra"
@@ -148,7 +149,7 @@ def test_intention_logged_per_pedestrian(tmp_path: Path) -> None:
         def observation(self, obs: dict) -> dict:
             return {**obs, "crossing_intention": (obs["pedestrians"][:, 0] * 0.25).astype(np.float32)}
 
-    env = FakeIntention(make_env(SCENARIO))
+    env = FakeIntention(make_env(SCENARIO)[0])
     out = tmp_path / "i.rrd"
     with open_recording(out, "intention-test") as rec:
         recorder = EpisodeRecorder(rec, env.unwrapped.scenario, 0.1)
@@ -387,8 +388,11 @@ def test_scene_replay_small_slice(tmp_path: Path, model: str, tiny_weights: Path
         assert summary.predictor == "cvm"
     elif model == "s-cgru":
         assert summary.predictor == "s-cgru (s-cgru_eth.pt)"
-    else:  # shipped weights if present, otherwise an announced constant-velocity fallback
-        assert summary.predictor.startswith("s-cgru") or "fallback" in summary.predictor
+    else:  # the shipped weights (predictors/weights/s-cgru_eth.pt), never a silent fallback
+        from predictors.checkpoints import WEIGHTS_DIR
+
+        assert (WEIGHTS_DIR / "s-cgru_eth.pt").is_file()
+        assert summary.predictor == "s-cgru (s-cgru_eth.pt)"
     data = read_rrd(out)
     assert len(data["/scene/pedestrians"]) == 40
     assert len(data["/scene/prediction"]) == 40

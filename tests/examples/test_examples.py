@@ -38,7 +38,8 @@ def test_ppo_example_trains_logs_plots_and_evaluates(tmp_path: Path) -> None:
     assert "collision rate [95% CI]" in proc.stdout and "mean return" in proc.stdout
     model = out / "model.zip"
     assert model.is_file() and model.stat().st_size > 1000
-    assert (out / "model.vecnormalize.pkl").is_file() and (out / "step_256.zip").is_file()
+    assert (out / "model.vecnormalize.npz").is_file() and (out / "step_256.zip").is_file()
+    assert not list(out.glob("*.pkl")), "statistics are data (npz), never pickle"
     assert (out / "learning_curve.png").stat().st_size > 1000
     header = (out / "episodes.csv").read_text().splitlines()[0]
     assert header == "step,scenario,return,collision,obligations,violations,delay,duration"

@@ -10,15 +10,16 @@ import pytest
 import torch
 
 from predictors import checkpoints
-from predictors.checkpoints import CheckpointError, sha256_file
+from predictors.checkpoints import WEIGHTS_DIR, CheckpointError, load_model, save_checkpoint, sha256_file
 from predictors.models import SocialRecurrent, default_config
-from predictors.train import WEIGHTS_DIR, TrainConfig, load_model, main, output_path, save_checkpoint
+from predictors.train import TrainConfig, main, output_path
 
 
 def test_every_shipped_checkpoint_matches_the_manifest():
     manifest = json.loads((WEIGHTS_DIR / "manifest.json").read_text())
     assert set(manifest) == {p.name for p in WEIGHTS_DIR.glob("*.pt")}
-    assert checkpoints.main([]) == 0
+    for path in WEIGHTS_DIR.glob("*.pt"):
+        checkpoints.verify_shipped(path)
 
 
 @pytest.fixture
@@ -92,3 +93,27 @@ def test_training_writes_under_runs_and_never_over_a_shipped_file(tmp_path: Path
     assert main(["--out", str(shipped), "--epochs", "1"]) == 2
     assert "shipped checkpoint" in capsys.readouterr().err
     assert sha256_file(shipped) == before
+
+
+def test_the_runtime_loaders_share_the_checkpoint_module() -> None:
+    """Model loading lives in `predictors.checkpoints`; the trainer and the wrapper use that one function."""
+    from predictors import train, trajectory_wrapper
+
+    assert train.load_model is load_model and trajectory_wrapper.load_model is load_model
+    assert train.WEIGHTS_DIR == trajectory_wrapper.WEIGHTS_DIR == WEIGHTS_DIR == checkpoints.SHIPPED_DIR
+
+
+def test_install_refuses_a_bad_file_and_a_file_from_another_folder(tmp_path: Path) -> None:
+    target = tmp_path / "m.pt"
+    save_checkpoint(target, _model(), {"v": 1})
+    before = target.read_bytes()
+    bad = checkpoints.partial_path(target)
+    bad.write_bytes(b"half a checkpoint")
+    with pytest.raises(ValueError, match="not a readable torch checkpoint"):
+        checkpoints.install_checkpoint(bad, target)
+    assert target.read_bytes() == before and bad.exists()
+    elsewhere = tmp_path / "other" / "m.pt"
+    save_checkpoint(elsewhere, _model(), {})
+    with pytest.raises(ValueError, match="must be in the folder"):
+        checkpoints.install_checkpoint(elsewhere, target)
+    assert target.read_bytes() == before

@@ -347,8 +347,8 @@ SHIPPED = Path(__file__).resolve().parents[2] / "predictors" / "weights"
 
 @pytest.mark.skipif(not (SHIPPED / "s-cgru_all.pt").is_file(), reason="shipped S-CGRU weights not built")
 def test_shipped_s_cgru_fast_path_matches_torch_model() -> None:
+    from predictors.checkpoints import load_model
     from predictors.fast_inference import FastPredictor
-    from predictors.train import load_model
 
     m = load_model(SHIPPED / "s-cgru_all.pt")
     g = torch.Generator().manual_seed(0)

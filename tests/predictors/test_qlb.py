@@ -1,11 +1,9 @@
-"""Tests for the quantum-like Bayesian (QLB) library and its figure script."""
+"""Tests for the quantum-like Bayesian (QLB) library; its figure script: tests/studies/test_qlb_figures.py."""
 
 from __future__ import annotations
 
 import itertools
 import math
-import subprocess
-import sys
 import warnings
 from pathlib import Path
 
@@ -14,11 +12,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from crossing_env.pedestrians.quantum import (
+from crossing_env.pedestrians.force_update import (
     PED_PED_INTENSITY,
     VEHICLE_PED_INTENSITY,
     ForceUpdateConfig,
     classical_updated_force_intensity,
+    updated_force_intensity,
+)
+from crossing_env.pedestrians.quantum import (
     disjunction_probabilities,
     disjunction_probability,
     heuristic_rule,
@@ -27,7 +28,6 @@ from crossing_env.pedestrians.quantum import (
     similarity_geometry,
     similarity_phase,
     triangle_angles,
-    updated_force_intensity,
 )
 from predictors import qlb
 from predictors.qlb import (
@@ -449,48 +449,3 @@ def test_force_update_config_and_input_validation() -> None:
         updated_force_intensity(-0.42, 0.5)
     out = updated_force_intensity(np.array([PED_PED_INTENSITY, VEHICLE_PED_INTENSITY]), np.array([0.3, 0.3]))
     assert out[1] / out[0] == pytest.approx(VEHICLE_PED_INTENSITY / PED_PED_INTENSITY)
-
-
-# --------------------------------------------------------------------------------------------------------
-# Figure script
-# --------------------------------------------------------------------------------------------------------
-def test_figure_script_writes_nontrivial_pngs(tmp_path: Path) -> None:
-    import matplotlib.image as mpimg
-
-    out = tmp_path / "figs"
-    proc = subprocess.run(
-        [sys.executable, "-m", "predictors.qlb_figures", "--out", str(out), "--grid", "21", "--dpi", "60"],
-        cwd=REPO,
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
-    assert proc.returncode == 0, proc.stderr
-    names = sorted(p.name for p in out.iterdir())
-    assert names == [
-        "fig03_cbm_far.png",
-        "fig04_qlb_far.png",
-        "fig05_cbm_mid.png",
-        "fig06_qlb_mid.png",
-        "fig07_cbm_near.png",
-        "fig08_qlb_near.png",
-        "fig10_update_ped_ped.png",
-        "fig11_update_vehicle_ped.png",
-    ]
-    for name in names:
-        img = mpimg.imread(out / name)
-        assert img.ndim == 3 and img.shape[0] >= 200 and img.shape[1] >= 300, name
-        assert float(img[..., :3].std()) > 0.05, f"{name} looks blank"
-
-
-def test_figure_script_rejects_a_file_as_out(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from predictors import qlb_figures
-
-    target = tmp_path / "not_a_dir.png"
-    target.write_text("x")
-    with pytest.raises(SystemExit) as exc:
-        qlb_figures.main(["--out", str(target)])
-    assert exc.value.code == 2
-    assert "not a directory" in capsys.readouterr().err
-    assert target.read_text() == "x"

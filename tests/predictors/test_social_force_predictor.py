@@ -2,12 +2,10 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import numpy as np
 import torch
 
 from predictors.baselines import cvm
-from predictors.data import Windows
-from predictors.social_force import SocialForcePredictor, every_nth, fit
+from predictors.social_force_predictor import SocialForcePredictor
 
 
 def _pair(gap_y: float, v: float = 0.5) -> torch.Tensor:
@@ -58,19 +56,3 @@ def test_qlb_raises_intensity_near_a_runner() -> None:
     sf = SocialForcePredictor(qlb=True)
     k_p = sf._setup(obs.double().numpy(), sse.numpy())[4]
     assert k_p[0] > sf.force.ped_intensity and k_p[1] == sf.force.ped_intensity
-
-
-def test_fit_moves_towards_the_generating_parameters() -> None:
-    """Data simulated with weak repulsion: the fit from the default lowers the strength and the error."""
-    truth = SocialForcePredictor()
-    truth = replace(truth, force=replace(truth.force, base_strength=2.0))
-    rng = np.random.default_rng(0)
-    trajs = []
-    for _ in range(6):
-        obs = _pair(float(rng.uniform(0.2, 1.0)), float(rng.uniform(0.4, 0.6)))
-        fut = truth.predict(obs, torch.tensor([[0, 2]]))
-        trajs.append(torch.cat([obs, fut], dim=1).numpy())
-    w = Windows(np.concatenate(trajs), np.array([[2 * i, 2 * i + 2] for i in range(6)], np.int64))
-    fitted, ade = fit(SocialForcePredictor(), every_nth(w, 6), sweeps=1)
-    assert fitted.force.base_strength < SocialForcePredictor().force.base_strength
-    assert ade < 0.05

@@ -1,15 +1,16 @@
 from __future__ import annotations
 
-import json
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 
-from predictors import evaluate
+from predictors import checkpoints, train
+from predictors.checkpoints import WEIGHTS_DIR, checkpoint_meta, load_model, save_checkpoint, sha256_file
 from predictors.models import SocialRecurrent, default_config
-from predictors.train import WEIGHTS_DIR, checkpoint_meta, load_model, main, save_checkpoint
+from predictors.train import main
 
 
 def _write_scene(folder: Path, name: str, seed: int, frames: int = 40) -> None:
@@ -44,7 +45,7 @@ def test_train_cli_writes_loadable_checkpoint(data_root: Path, tmp_path: Path) -
     meta = checkpoint_meta(out)
     assert meta["scene"] == "eth" and meta["epochs_run"] == 2 and len(meta["history"]) == 2
     assert meta["best_epoch"] in (1, 2)
-    assert not list(out.parent.glob("*.tmp"))
+    assert [f.name for f in out.parent.iterdir()] == ["m.pt"]  # no temporary file left behind
 
 
 def test_train_cli_bad_input_exits_nonzero(
@@ -71,32 +72,6 @@ def test_train_rotation_augmentation_can_be_switched_off(
     assert main([*base, "--rotate", "2", "--out", str(tmp_path / "bad.pt")]) == 2
     assert "--rotate must be 0 or 1, got 2" in capsys.readouterr().err
     assert not (tmp_path / "bad.pt").exists()
-
-
-def _train_all_args(data_root: Path, out: Path, logs: Path) -> list[str]:
-    """One-epoch `predictors.train_all` arguments on the tiny data root."""
-    return ["--data", str(data_root), "--out-dir", str(out), "--log-dir", str(logs), "--epochs", "1"]
-
-
-def test_train_all_runs_in_parallel_and_reports_a_failed_run(
-    data_root: Path, tmp_path: Path, capsys: pytest.CaptureFixture
-) -> None:
-    from predictors import train_all
-
-    out, logs = tmp_path / "w", tmp_path / "logs"
-    args = [*_train_all_args(data_root, out, logs), "--jobs", "2"]
-    # hotel has no data in this root: that run fails, the other two still finish
-    assert train_all.main([*args, "--models", "s-cgru,lstm", "--scenes", "eth,hotel"]) == 1
-    printed = capsys.readouterr().out
-    for name in ("s-cgru_eth", "lstm_eth"):
-        assert load_model(out / f"{name}.pt").config.kind == name.split("_")[0]
-        assert "epoch 1: train nll" in (logs / f"{name}.log").read_text()
-        assert f"{name}.pt: epochs 1" in printed
-    assert "s-cgru_hotel: FAILED" in printed and "lstm_hotel: FAILED" in printed
-    assert not (out / "s-cgru_hotel.pt").exists()
-    assert "Traceback" in (logs / "s-cgru_hotel.log").read_text()  # the failed run's log says why
-    assert train_all.main([*args, "--models", "transformer"]) == 2
-    assert "transformer" in capsys.readouterr().err
 
 
 def test_checkpoint_roundtrip_and_clear_errors(tmp_path: Path) -> None:
@@ -144,43 +119,6 @@ def test_shipped_weights_load_and_are_small() -> None:
         load_model(f)
 
 
-def test_scene_min_matches_brute_force() -> None:
-    g = torch.Generator().manual_seed(0)
-    err = torch.rand(5, 7, generator=g)
-    sse = torch.tensor([[0, 3], [3, 4], [4, 7]])
-    got = evaluate.scene_min(err, sse)
-    want = torch.stack([err[:, s:e].sum(1).min() for s, e in sse.tolist()])
-    torch.testing.assert_close(got, want)
-
-
-def test_evaluate_cli_json_on_synthetic_data(data_root: Path, capsys: pytest.CaptureFixture) -> None:
-    rc = evaluate.main(
-        ["--data", str(data_root), "--scenes", "eth", "--models", "cvm,cvm-s,kalman", "--json"]
-    )
-    assert rc == 0
-    res = json.loads(capsys.readouterr().out)
-    eth = res["results"]["cvm"]["eth"]
-    # synthetic walkers move at constant velocity: CVM is exact up to the 1 mm rounding of the files
-    assert eth["k1"][0] < 1e-2 and eth["ped20"][1] < 1e-2
-    cs = res["results"]["cvm-s"]["eth"]
-    assert cs["ped20"][0] <= cs["scene20"][0] + 1e-9  # per-pedestrian min can only be smaller
-    assert evaluate.main(["--data", str(data_root), "--scenes", "mars"]) == 2
-
-
-def test_evaluating_a_scene_alone_gives_the_full_runs_numbers(
-    data_root: Path, capsys: pytest.CaptureFixture
-) -> None:
-    """Sample seeds follow the scene, not its place in ``--scenes`` (so runs can be split and merged)."""
-    _write_scene(data_root / "eth_ucy" / "hotel" / "test", "h_test.txt", seed=5)
-    runs = []
-    for scenes in ("eth,hotel", "hotel"):
-        args = ["--data", str(data_root), "--scenes", scenes, "--models", "cvm-s,kalman", "--json"]
-        assert evaluate.main(args) == 0
-        runs.append(json.loads(capsys.readouterr().out)["results"])
-    for model in ("cvm-s", "kalman"):
-        assert runs[0][model]["hotel"] == runs[1][model]["hotel"]
-
-
 class _RunsCode:
     """A pickle payload that would create a file when unpickled by a permissive loader."""
 
@@ -224,49 +162,84 @@ def test_train_stops_early_without_val_progress(data_root: Path, tmp_path: Path)
     assert meta["patience"] == 1 and meta["lr_plateau"] == 1
 
 
-def test_seed_table_reports_mean_sd_and_the_verdict() -> None:
-    from predictors.seed_table import summary, table
-
-    def run(model_ade: float) -> dict:
-        res = {"s-cgru": {}, "dcvm": {}}
-        for s in ("eth", "hotel", "univ", "zara1", "zara2"):
-            res["s-cgru"][s] = {"k1": [model_ade, 1.0], "ped20": [model_ade / 2, 0.5], "es": [1.0, 0.0]}
-            res["dcvm"][s] = {"k1": [0.50, 1.0], "ped20": [0.30, 0.5], "es": [1.0, 0.0]}
-        return {"results": res}
-
-    text, wins = table([run(0.40), run(0.42), run(0.44)], "s-cgru", "dcvm")
-    assert "0.420 ± 0.020 (3)" in text and wins == 5  # 0.42 vs 0.50 at K=1, 0.21 vs 0.30 at best-of-20
-    _, wins = table([run(0.30), run(0.70)], "s-cgru", "dcvm")
-    assert wins == 0  # mean 0.50: no better at K=1, and the seed sd (0.28) swamps any difference
-    rows = summary([run(0.40), run(0.42), run(0.44)], ["dcvm", "s-cgru"]).splitlines()
-    assert rows[2].startswith("| dcvm | 0.500 / 1.000 | 0.300 / 0.500 |")  # no seed: no sd
-    assert rows[3].startswith("| s-cgru | 0.420 ± 0.020 / 1.000 | 0.210 ± 0.010 / 0.500 |")
+@pytest.fixture
+def shipped_copy(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """A private 'shipped' folder holding one real checkpoint and its manifest."""
+    folder = tmp_path / "weights"
+    folder.mkdir()
+    path = folder / "s-cgru_all.pt"
+    shutil.copy(WEIGHTS_DIR / "s-cgru_all.pt", path)
+    monkeypatch.setattr(checkpoints, "SHIPPED_DIR", folder.resolve())
+    monkeypatch.setattr(checkpoints, "MANIFEST", folder / "manifest.json")
+    checkpoints.update_manifest()
+    return path
 
 
-def test_seed_table_cli_names_a_model_missing_from_the_files(
-    tmp_path: Path, capsys: pytest.CaptureFixture
+def _force_args(data_root: Path, out: Path) -> list[str]:
+    return ["--model", "lstm", "--scene", "eth", "--epochs", "3", "--data", str(data_root), "--out", str(out)]
+
+
+@pytest.mark.parametrize("error", [RuntimeError("disk on fire"), KeyboardInterrupt()])
+def test_force_over_a_shipped_checkpoint_that_fails_midway_changes_nothing(
+    data_root: Path, shipped_copy: Path, monkeypatch: pytest.MonkeyPatch, error: BaseException
 ) -> None:
-    from predictors import seed_table
+    """Issue 25: `crossing-train --force` used to write each epoch's best straight over the shipped file."""
+    folder = shipped_copy.parent
+    before = {f.name: f.read_bytes() for f in folder.iterdir()}
+    real, calls = train.most_likely_ade, []
 
-    f = tmp_path / "seed0.json"
-    f.write_text(json.dumps({"results": {"dcvm": {"eth": {"k1": [0.5, 1.0]}}}}))
-    assert seed_table.main([str(f), "--models", "s-lstm"]) == 2
-    assert "['s-lstm'] not in any file" in capsys.readouterr().err
-    assert seed_table.main([str(tmp_path / "absent.json")]) == 2
+    def fail_in_epoch_two(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 2:  # epoch 1's checkpoint has been written by now
+            raise error
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(train, "most_likely_ade", fail_in_epoch_two)
+    with pytest.raises(type(error)):
+        main([*_force_args(data_root, shipped_copy), "--force"])
+    assert len(calls) == 2
+    assert {f.name: f.read_bytes() for f in folder.iterdir()} == before  # file, manifest, nothing else
+    load_model(shipped_copy)  # still matches its manifest entry
 
 
-def test_train_all_repeats_runs_per_seed(data_root: Path, tmp_path: Path) -> None:
-    from predictors import train_all
+def test_force_over_a_shipped_checkpoint_that_fails_while_installing_changes_nothing(
+    data_root: Path, shipped_copy: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A manifest that cannot be rewritten after the replace: the previous file is put back."""
+    folder = shipped_copy.parent
+    before = {f.name: f.read_bytes() for f in folder.iterdir()}
 
-    out = tmp_path / "w"
-    args = _train_all_args(data_root, out, tmp_path / "logs")
-    assert train_all.main([*args, "--models", "lstm", "--scenes", "eth", "--seeds", "3,4"]) == 0
-    assert [checkpoint_meta(out / f"seed{k}" / "lstm_eth.pt")["seed"] for k in (3, 4)] == [3, 4]
-    from predictors.seed_table import budget_table, val_table
+    def no_manifest(names=None):
+        raise OSError("read-only manifest")
 
-    row = budget_table(out).splitlines()[2]
-    assert row.startswith("| lstm | 2 | 0 | 1–1 | 1–1 |")  # two one-epoch runs, neither stopped early
-    val = [checkpoint_meta(out / f"seed{k}" / "lstm_eth.pt")["val_ade"] for k in (3, 4)]
-    row = val_table(out).splitlines()[2]
-    assert row == f"| lstm | eth | {np.mean(val):.3f} ± {np.std(val, ddof=1):.3f} | 2 |"
-    assert train_all.main([*args, "--seeds", "one"]) == 2
+    monkeypatch.setattr(checkpoints, "update_manifest", no_manifest)
+    with pytest.raises(OSError, match="read-only manifest"):
+        main([*_force_args(data_root, shipped_copy), "--force"])
+    assert {f.name: f.read_bytes() for f in folder.iterdir()} == before
+    load_model(shipped_copy)
+
+
+def test_force_replaces_a_shipped_checkpoint_and_its_manifest_entry(
+    data_root: Path, shipped_copy: Path, capsys: pytest.CaptureFixture
+) -> None:
+    old_sum = sha256_file(shipped_copy)
+    assert main(_force_args(data_root, shipped_copy)) == 2  # without --force: refused
+    assert "shipped checkpoint" in capsys.readouterr().err and sha256_file(shipped_copy) == old_sum
+    assert main([*_force_args(data_root, shipped_copy), "--force"]) == 0
+    assert sorted(f.name for f in shipped_copy.parent.iterdir()) == ["manifest.json", "s-cgru_all.pt"]
+    assert checkpoints.read_manifest() == {"s-cgru_all.pt": sha256_file(shipped_copy)}
+    assert sha256_file(shipped_copy) != old_sum
+    model = load_model(shipped_copy)  # passes the manifest check
+    assert model.config.kind == "lstm" and checkpoint_meta(shipped_copy)["epochs_run"] == 3
+
+
+def test_a_run_without_a_finite_val_ade_writes_nothing(
+    data_root: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    out = tmp_path / "w" / "m.pt"
+    out.parent.mkdir()
+    out.write_bytes(b"previous")
+    monkeypatch.setattr(train, "most_likely_ade", lambda *a, **k: (float("nan"), float("nan")))
+    assert main(_force_args(data_root, out)) == 2
+    assert "no epoch gave a finite val ADE" in capsys.readouterr().err
+    assert [f.name for f in out.parent.iterdir()] == ["m.pt"] and out.read_bytes() == b"previous"

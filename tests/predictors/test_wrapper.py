@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from gymnasium import spaces
 
-from predictors.train import WEIGHTS_DIR
+from predictors.checkpoints import WEIGHTS_DIR
 from predictors.trajectory_wrapper import TrajectoryPrediction
 
 K = 16

@@ -38,7 +38,7 @@ def test_list_items_and_nested_tables_can_be_overridden():
     ("overrides", "needles"),
     [
         ({"pedestrians.spawn_rat": 1.0}, ["pedestrians.spawn_rat", "spawn_rate"]),
-        ({"pedestrians.spawn_rate": -1.0}, ["pedestrians.spawn_rate = -1.0", "[0, 600]"]),
+        ({"pedestrians.spawn_rate": -1.0}, ["pedestrians.spawn_rate = -1.0", "[0, 300]"]),
         ({"pedestrians.spawn_rate": "many"}, ["'many'"]),
         ({"traffic.spawns[9].lane": 0}, ["traffic.spawns[9].lane", "out of range"]),
         ({"duration.seconds": 1.0}, ["not a table"]),

@@ -1,0 +1,223 @@
+"""Does each scenario tell careless from careful driving, and do its seeds differ? The discrimination report.
+
+For every built-in scenario it runs the same seeds with a car that never brakes (`constant_speed`), the
+rule-based `yielding` policy and `always_cautious`, through `crossing-eval`'s own tasks and runners (the
+same seeds, wrappers and metrics as the table), and reports per scenario and policy:
+
+- distinct outcomes: different (time to pass to 0.1 s, collision, min-TTC to 0.1 s, yield violations)
+  tuples among the seeds (a scenario whose seeds all give the same episode measures one episode);
+- collision rate, violation rate (episodes with a failed yield obligation) and their union;
+- pass rate and the censored time to pass (an episode that never passes counts at the scenario's duration);
+- the 5th percentile of the episodes' minimum TTC to a pedestrian.
+
+It writes the numbers to a JSON file (with the commit and the command) and renders the markdown report from
+that file, and checks the targets of a scenario that tests the car (printed, with the gaps):
+
+    python benchmarks/discrimination.py --seeds 45              # measure, write JSON and markdown
+    python benchmarks/discrimination.py --render                # re-render the markdown from the JSON
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from crossing_common.files import write_text_atomic
+from crossing_eval.runners import default_workers, run_tasks
+from crossing_eval.tasks import EpisodeRecord, make_tasks
+from scenarios import list_scenarios, load_scenario
+
+REPO = Path(__file__).resolve().parents[1]
+POLICIES = ("constant_speed", "yielding", "always_cautious")
+DEFAULT_JSON = REPO / "benchmarks" / "results" / "discrimination.json"
+DEFAULT_MARKDOWN = REPO / "docs" / "scenario_discrimination.md"
+BASE_SEED = 7000
+"""Base seed of the report (not the table's 2024, so the report is not tuned on the table's episodes)."""
+UNTARGETED = frozenset({"default"})
+"""Scenarios not built around a conflict (free traffic): the careless-driver target does not apply."""
+
+
+def _commit() -> str:
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=REPO, capture_output=True, text=True, check=True
+        ).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain"], cwd=REPO, capture_output=True, text=True)
+        return out + ("-dirty" if dirty.stdout.strip() else "")
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def _num(value: Any, missing: float) -> float:
+    """A result field as a float; JSON-safe results hold None where the value is undefined or infinite."""
+    return missing if value is None else float(value)
+
+
+def outcome(result: dict[str, Any]) -> tuple[Any, ...]:
+    """What distinguishes two episodes for the report (rounded so float noise does not count)."""
+    ttp = _num(result["time_to_pass"], float("nan"))
+    ttc = _num(result["min_ttc"], float("inf"))
+    return (
+        round(float(ttp), 1) if np.isfinite(ttp) else None,
+        bool(result["collision"]),
+        round(float(ttc), 1) if np.isfinite(ttc) else None,
+        int(result["yield_violations"]),
+    )
+
+
+def _json_float(x: float) -> float | None:
+    """JSON has no infinity: None stands for "no conflict" (an infinite minimum TTC)."""
+    return x if np.isfinite(x) else None
+
+
+def cell(records: list[EpisodeRecord], duration: float) -> dict[str, Any]:
+    """The report's figures for one (scenario, policy)."""
+    res = [r.result for r in records]
+    collided = np.array([r["collision"] for r in res], dtype=bool)
+    violated = np.array([r["yield_violations"] > 0 for r in res], dtype=bool)
+    passed = np.array([r["passed_crossing"] for r in res], dtype=bool)
+    ttp = np.array([_num(r["time_to_pass"], float("nan")) for r in res], dtype=np.float64)
+    censored = np.where(passed & np.isfinite(ttp), ttp, duration)
+    ttc = np.array([_num(r["min_ttc"], float("inf")) for r in res], dtype=np.float64)
+    return {
+        "episodes": len(res),
+        "distinct_outcomes": len({outcome(r) for r in res}),
+        "collision_rate": float(collided.mean()),
+        "violation_rate": float(violated.mean()),
+        "collision_or_violation_rate": float((collided | violated).mean()),
+        "pass_rate": float(passed.mean()),
+        "censored_time_to_pass": float(censored.mean()),
+        "min_ttc_p5": _json_float(float(np.percentile(ttc, 5))),
+    }
+
+
+def measure(scenarios: list[str], seeds: int, workers: int, progress: bool) -> dict[str, Any]:
+    """Run the episodes and return the report's data."""
+    tasks = make_tasks(scenarios, list(POLICIES), seeds, BASE_SEED)
+    t0 = time.perf_counter()
+    records = run_tasks(tasks, workers, show_progress=progress)
+    wall = time.perf_counter() - t0
+    groups: dict[tuple[str, str], list[EpisodeRecord]] = defaultdict(list)
+    for r in records:
+        groups[(r.task.scenario, r.task.policy)].append(r)
+    cells = {
+        sc: {pol: cell(groups[(sc, pol)], load_scenario(sc).duration) for pol in POLICIES} for sc in scenarios
+    }
+    return {
+        "command": "python benchmarks/discrimination.py " + " ".join(sys.argv[1:]),
+        "commit": _commit(),
+        "seeds": seeds,
+        "base_seed": BASE_SEED,
+        "wall_seconds": round(wall, 1),
+        "workers": workers,
+        "scenarios": cells,
+    }
+
+
+def check_targets(data: dict[str, Any]) -> list[str]:
+    """The targets a scenario that tests the car must meet; returns one line per miss."""
+    misses = []
+    n = data["seeds"]
+    for sc, pols in data["scenarios"].items():
+        careless, careful, cautious = pols["constant_speed"], pols["yielding"], pols["always_cautious"]
+        if sc not in UNTARGETED and careless["collision_or_violation_rate"] < 0.5:
+            misses.append(
+                f"{sc}: constant_speed collides or fails to yield in"
+                f" {careless['collision_or_violation_rate']:.0%} of episodes (target >= 50 %)"
+            )
+        if careful["collision_rate"] > 0:
+            misses.append(f"{sc}: yielding collides in {careful['collision_rate']:.0%} of episodes (want 0)")
+        if careful["distinct_outcomes"] < round(35 / 45 * n):
+            misses.append(
+                f"{sc}: yielding has {careful['distinct_outcomes']} distinct outcomes out of {n}"
+                f" (target >= {round(35 / 45 * n)})"
+            )
+        lo, hi = (0.2, 0.8) if sc == "busy_zebra" else (0.8, 1.0)
+        if not lo <= careful["pass_rate"] <= hi:
+            misses.append(f"{sc}: yielding passes in {careful['pass_rate']:.0%} (target {lo:.0%}-{hi:.0%})")
+        if cautious["censored_time_to_pass"] <= careful["censored_time_to_pass"]:
+            misses.append(f"{sc}: always_cautious is not slower than yielding")
+    return misses
+
+
+def _fmt(x: float | None, digits: int = 2) -> str:
+    return "-" if x is None or not np.isfinite(x) else f"{x:.{digits}f}"
+
+
+def render(data: dict[str, Any]) -> str:
+    """The markdown report from the JSON data."""
+    lines = [
+        "# Scenario discrimination report",
+        "",
+        "Generated by `python benchmarks/discrimination.py` from `benchmarks/results/discrimination.json`;"
+        " do not edit by hand (`--render` re-renders it).",
+        "",
+        f"Measured on commit `{data['commit']}` with `{data['command'].strip()}`: {data['seeds']} seeds per"
+        f" scenario (base seed {data['base_seed']}), {data['wall_seconds']:.0f} s on {data['workers']}"
+        " worker(s). A scenario tells careless from careful driving when the car that never brakes"
+        " (`constant_speed`) collides or fails to yield and `yielding` does not; its seeds differ when"
+        " `yielding` meets many distinct outcomes (time to pass to 0.1 s, collision, min-TTC to 0.1 s,"
+        " violations). Time to pass is censored: an episode that never passes counts at the duration.",
+        "",
+        "| scenario | policy | distinct | collision | violation | either | pass rate | time to pass (s)"
+        " | min-TTC p5 (s) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for sc, pols in data["scenarios"].items():
+        for pol, c in pols.items():
+            lines.append(
+                f"| {sc} | {pol} | {c['distinct_outcomes']}/{c['episodes']} | {_fmt(c['collision_rate'])}"
+                f" | {_fmt(c['violation_rate'])} | {_fmt(c['collision_or_violation_rate'])}"
+                f" | {_fmt(c['pass_rate'])} | {_fmt(c['censored_time_to_pass'], 1)}"
+                f" | {_fmt(c['min_ttc_p5'])} |"
+            )
+    misses = check_targets(data)
+    lines += ["", "## Targets", ""]
+    lines.append(
+        "Per scenario: `constant_speed` collides or fails to yield in >= 50 % of episodes (scenarios built"
+        " around a conflict); `yielding` never collides, has >= 35 distinct outcomes in 45 seeds and passes"
+        " in >= 80 % of episodes (`busy_zebra`: 20-80 %); `always_cautious` is slower than `yielding`."
+    )
+    lines.append("")
+    lines += [f"- missed: {m}" for m in misses] if misses else ["All targets met."]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Measure (or re-render) the report; exit status 0 whether or not the targets are met."""
+    parser = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter
+    )
+    parser.add_argument("--seeds", type=int, default=45, help="episodes per scenario and policy")
+    parser.add_argument("--scenarios", default=None, help="comma-separated scenarios (default: all built-in)")
+    parser.add_argument("--workers", type=int, default=default_workers(), help="worker processes")
+    parser.add_argument("--json", type=Path, default=DEFAULT_JSON, help="results file")
+    parser.add_argument("--markdown", type=Path, default=DEFAULT_MARKDOWN, help="rendered report")
+    parser.add_argument("--render", action="store_true", help="only re-render the markdown from --json")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    args = parser.parse_args(argv)
+    if args.render:
+        data = json.loads(args.json.read_text(encoding="utf-8"))
+    else:
+        if args.seeds < 1 or args.workers < 1:
+            parser.error("--seeds and --workers must be >= 1")
+        scenarios = sorted(list_scenarios()) if args.scenarios is None else args.scenarios.split(",")
+        data = measure(scenarios, args.seeds, args.workers, not args.no_progress)
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(args.json, json.dumps(data, indent=1) + "\n")
+    text = render(data)
+    write_text_atomic(args.markdown, text)
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,130 @@
+"""Where a run's numbers came from: package version, commit, the files that were loaded, the settings.
+
+Stored under ``provenance`` in ``results.json`` (and beside a grid's table), so a table can be traced to
+the code and the exact model files behind it. Apart from the command line as typed, nothing here depends on
+timing, workers or the backend: the recorded command leaves out the options that only say how to run
+(`RUN_ONLY_OPTIONS`), so ``results.json`` is byte-identical whatever ran the episodes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import subprocess
+import sys
+from collections.abc import Sequence
+from importlib import metadata
+from pathlib import Path
+from typing import Any
+
+from rollout import TRAJECTORY_WRAPPERS
+from scenarios import load_scenario
+
+REPO = Path(__file__).resolve().parents[1]
+RUN_ONLY_OPTIONS = {"--workers": 1, "--backend": 1, "--address": 1, "--ray-timeout": 1, "--out": 1}
+"""Options (with their value count) that change how a run executes, never its numbers."""
+FLAGS_RUN_ONLY = ("--no-progress",)
+
+
+def numbers_command(argv: Sequence[str]) -> list[str]:
+    """`argv` without the run-only options (``--workers 2``, ``--out=dir``, ``--no-progress``, ...)."""
+    out: list[str] = []
+    skip = 0
+    for arg in argv:
+        if skip:
+            skip -= 1
+            continue
+        name = arg.split("=", 1)[0]
+        if name in FLAGS_RUN_ONLY:
+            continue
+        if name in RUN_ONLY_OPTIONS:
+            skip = 0 if "=" in arg else RUN_ONLY_OPTIONS[name]
+            continue
+        out.append(arg)
+    return out
+
+
+def package_version() -> str:
+    """The installed crossing-env version ("unknown" when run from a tree that is not installed)."""
+    try:
+        return metadata.version("crossing-env")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def source_commit() -> str:
+    """The checkout's commit, with ``-dirty`` when tracked files differ; "unknown" outside a git checkout."""
+    if not (REPO / ".git").exists():
+        return "unknown"
+    try:
+        head = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True, check=True, timeout=10
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=REPO,
+            capture_output=True,
+            text=True,
+            check=True,
+            timeout=10,
+        ).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return head + ("-dirty" if dirty else "")
+
+
+def _shown(path: Path) -> str:
+    """A shipped file relative to the project (same on every machine); a user's file as given."""
+    try:
+        return path.resolve().relative_to(REPO).as_posix()
+    except ValueError:
+        return str(path)
+
+
+def sha256(path: Path) -> str:
+    """Hex sha256 of a file."""
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def model_files(policies: Sequence[str], predictors: Sequence[str]) -> list[Path]:
+    """The weight and statistics files the run loaded: shipped or given by path."""
+    files: list[Path] = []
+    for name in predictors:
+        if name in TRAJECTORY_WRAPPERS:
+            model = TRAJECTORY_WRAPPERS[name].kwargs.get("model")
+            if model and model != "cvm":
+                from predictors.checkpoints import WEIGHTS_DIR
+
+                files.append(WEIGHTS_DIR / f"{model}_all.pt")
+        elif name != "none" and Path(name).is_file():
+            files.append(Path(name))
+    for spec in policies:
+        path: Path | None = None
+        if spec == "ppo":
+            from agents.registry import SHIPPED_PPO
+
+            path = SHIPPED_PPO
+        elif spec.startswith("sb3:"):
+            path = Path(spec[len("sb3:") :])
+        if path is not None and path.is_file():
+            files.append(path)
+            files += [p for p in sorted(path.parent.glob(path.stem + ".vecnormalize.*")) if p.is_file()]
+    return list(dict.fromkeys(files))
+
+
+def provenance(
+    scenarios: Sequence[str], policies: Sequence[str], predictors: Sequence[str], argv: Sequence[str]
+) -> dict[str, Any]:
+    """The ``provenance`` block of ``results.json``."""
+    return {
+        "package_version": package_version(),
+        "commit": source_commit(),
+        "python": sys.version.split()[0],
+        "command": " ".join(["crossing-eval", *numbers_command(argv)]),
+        "scenario_durations": {s: load_scenario(s).duration for s in scenarios},
+        "files": {_shown(p): sha256(p) for p in model_files(policies, predictors)},
+    }
+
+
+def trajectory_predictors(labels: Sequence[str]) -> list[str]:
+    """Predictor names from wrapper labels such as ``trajectory:s-cgru`` (what actually ran)."""
+    return sorted({label.split(":", 1)[1] for label in labels if label.startswith("trajectory:")})

@@ -1,0 +1,128 @@
+"""The one episode loop: reset the policy and the env with a seed, step until the end, score from the truth.
+
+`frames` yields every frame (for recorders and videos); `run_episode` consumes them and returns an
+`Episode`: the metrics (`crossing_env.safety.EpisodeMetrics`, fed the world's ground truth, never the
+policy's view), the actions (enough to replay it), the return and the final ground truth. The same
+(env, policy, seed) gives the same `Episode` in any process.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from agents import Policy
+from crossing_env.safety import EpisodeMetrics
+from crossing_env.types import GroundTruth
+
+
+@dataclass
+class Frame:
+    """One frame of an episode: what the policy saw and what was true."""
+
+    step: int
+    """Frame index (0 = after reset)."""
+    observation: dict[str, np.ndarray]
+    """The observation the policy saw (after the wrappers)."""
+    ground_truth: GroundTruth
+    """The world's true state."""
+    slot_ids: np.ndarray
+    """(K,) pedestrian id shown in each observation slot (−1 = empty), to attach predictions to people."""
+    action: np.ndarray | None
+    """Action that produced this frame (None for frame 0)."""
+    reward: float = 0.0
+    """Reward of the step that produced this frame (0 for frame 0)."""
+    terminated: bool = False
+    """The episode ended in a terminal state at this frame."""
+    truncated: bool = False
+    """The episode was cut at the time limit at this frame."""
+
+
+@dataclass
+class Episode:
+    """What one episode gives: the scored result and what is needed to replay and verify it."""
+
+    result: dict[str, Any]
+    """`EpisodeResult.as_dict()` (JSON-safe)."""
+    actions: list[float]
+    """Actions given to `env.step`, in order."""
+    episode_return: float
+    """Sum of the env's rewards."""
+    final_ground_truth: GroundTruth
+    """Last ground truth (lets a replay check that it reproduced the episode)."""
+
+
+def slot_ids(env: gym.Env) -> np.ndarray:
+    """(K,) ids of the pedestrians in the observation's slots at the last observation (−1 = empty)."""
+    base = env.unwrapped
+    observer = getattr(base, "_observer", None)
+    slots = getattr(observer, "last_slots", None)
+    if slots is None or base.world is None:
+        return np.zeros(0, dtype=np.int64)
+    ids = base.world.pedestrians.ids
+    return np.where(slots >= 0, ids[np.maximum(slots, 0)], -1).astype(np.int64)
+
+
+def frames(
+    env: gym.Env,
+    seed: int,
+    policy: Policy | None = None,
+    actions: Sequence[float] | np.ndarray | None = None,
+    max_steps: int | None = None,
+) -> Iterator[Frame]:
+    """Reset (policy first, then env) with `seed` and step with `policy` or the logged `actions`.
+
+    Stops at termination, truncation, `max_steps`, or the end of `actions`.
+
+    Raises:
+        ValueError: not exactly one of `policy` and `actions`.
+    """
+    if (policy is None) == (actions is None):
+        raise ValueError("an episode needs exactly one of policy and actions")
+    if policy is not None:
+        policy.reset(seed=seed)
+    obs, info = env.reset(seed=seed)
+    yield Frame(0, obs, info["ground_truth"], slot_ids(env), None)
+    limit = len(actions) if actions is not None else sys.maxsize
+    if max_steps is not None:
+        limit = min(limit, max_steps)
+    step = 0
+    while step < limit:
+        raw = actions[step] if actions is not None else policy(obs)  # type: ignore[misc]
+        action = np.asarray(raw, dtype=np.float32).reshape(1)
+        obs, reward, terminated, truncated, info = env.step(action)
+        step += 1
+        yield Frame(
+            step, obs, info["ground_truth"], slot_ids(env), action, float(reward), terminated, truncated
+        )
+        if terminated or truncated:
+            break
+
+
+def run_episode(
+    env: gym.Env,
+    seed: int,
+    policy: Policy | None = None,
+    actions: Sequence[float] | np.ndarray | None = None,
+    max_steps: int | None = None,
+) -> Episode:
+    """Run one episode (see `frames`) and score it from the ground truth."""
+    base = env.unwrapped
+    metrics = EpisodeMetrics(base.scenario, base.config.dt)
+    taken: list[float] = []
+    episode_return = 0.0
+    gt: GroundTruth | None = None
+    for frame in frames(env, seed, policy, actions, max_steps):
+        gt = frame.ground_truth
+        if frame.action is None:
+            continue
+        taken.append(float(frame.action[0]))
+        episode_return += frame.reward
+        metrics.update(gt)
+    assert gt is not None  # frame 0 always comes
+    return Episode(metrics.result().as_dict(), taken, episode_return, gt)

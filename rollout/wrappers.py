@@ -1,0 +1,154 @@
+"""The one table of prediction wrappers: ``--intention`` and ``--predictor`` names → observation wrappers.
+
+Every tool builds its wrappers here, so a name means the same wrapper everywhere and a wrapper that cannot
+be built is an error everywhere (`WrapperError`, a ``ValueError``): nothing runs on without the predictor
+that was asked for. The opt-out is explicit: the name ``none``. The ``oracle`` entries read the world's
+ground truth; they exist as privileged upper bounds and are only used when asked for by name.
+
+Adding a predictor is one row in `INTENTION_WRAPPERS` or `TRAJECTORY_WRAPPERS` (and its module).
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+NONE = "none"
+"""The explicit opt-out: no wrapper of this kind."""
+DEFAULT_INTENTION = "qlb"
+"""Intention wrapper for a policy that reads predictions when the caller names none."""
+DEFAULT_PREDICTOR = "s-cgru"
+"""Trajectory predictor for a policy that reads predictions when the caller names none."""
+
+
+class WrapperError(ValueError):
+    """A wrapper name that is unknown or a wrapper that cannot be built (missing module, bad weights)."""
+
+
+@dataclass(frozen=True)
+class WrapperEntry:
+    """How to build one wrapper: ``module:attr`` imported on first use (the trajectory models load torch)."""
+
+    target: str
+    """``"pkg.module:Class"`` of the `gymnasium.ObservationWrapper`."""
+    kwargs: Mapping[str, Any] = field(default_factory=dict)
+    """Keyword arguments after the env."""
+    privileged: bool = False
+    """Reads the ground truth (an oracle bound, never a deployable predictor)."""
+    summary: str = ""
+    """One line for ``--help`` and the docs."""
+
+
+INTENTION_WRAPPERS: dict[str, WrapperEntry] = {
+    "qlb": WrapperEntry(
+        "predictors.intention:QLBIntention", summary="quantum-like Bayesian crossing intention (Song et al.)"
+    ),
+    "classical": WrapperEntry(
+        "predictors.intention:ClassicalIntention", summary="the same model without the interference term"
+    ),
+    "oracle": WrapperEntry(
+        "predictors.oracle:OracleIntention", privileged=True, summary="the true decision (upper bound)"
+    ),
+}
+"""``--intention`` names (besides ``none``): wrappers that add ``crossing_intention``."""
+
+TRAJECTORY_WRAPPERS: dict[str, WrapperEntry] = {
+    "s-cgru": WrapperEntry(
+        "predictors.trajectory_wrapper:TrajectoryPrediction",
+        {"model": "s-cgru"},
+        summary="social convolutional GRU (Xu et al.), shipped weights",
+    ),
+    "cvm": WrapperEntry(
+        "predictors.trajectory_wrapper:TrajectoryPrediction",
+        {"model": "cvm"},
+        summary="constant-velocity model (the trivial baseline)",
+    ),
+    "oracle": WrapperEntry(
+        "predictors.oracle:OracleTrajectory", privileged=True, summary="the true future (upper bound)"
+    ),
+}
+"""``--predictor`` names (besides ``none`` and checkpoint paths): wrappers that add ``predicted_paths``."""
+
+CHECKPOINT_WRAPPER = "predictors.trajectory_wrapper:TrajectoryPrediction"
+"""The wrapper a ``--predictor`` checkpoint path is loaded into (``model=path``)."""
+
+
+def intention_names() -> tuple[str, ...]:
+    """Every ``--intention`` value: the table's names and ``none``."""
+    return (*INTENTION_WRAPPERS, NONE)
+
+
+def predictor_names() -> tuple[str, ...]:
+    """Every ``--predictor`` name (a checkpoint path is accepted too): the table's names and ``none``."""
+    return (*TRAJECTORY_WRAPPERS, NONE)
+
+
+def _load(target: str, what: str) -> Any:
+    module, _, attr = target.partition(":")
+    try:
+        return getattr(importlib.import_module(module), attr)
+    except (ImportError, AttributeError) as exc:
+        raise WrapperError(f"{what}: cannot load {target} ({exc})") from exc
+
+
+def _build(env: Any, entry: WrapperEntry, what: str, **extra: Any) -> Any:
+    cls = _load(entry.target, what)
+    try:
+        return cls(env, **{**entry.kwargs, **extra})
+    except WrapperError:
+        raise
+    except (OSError, ValueError, RuntimeError, KeyError) as exc:
+        # predictors.checkpoints.CheckpointError is a ValueError: corrupt or tampered weights land here.
+        raise WrapperError(f"{what}: {exc}") from exc
+
+
+def wrap_intention(env: Any, name: str) -> tuple[Any, str | None]:
+    """`env` under the intention wrapper `name`, and its label (None for ``none``).
+
+    Raises:
+        WrapperError: unknown name, or the wrapper cannot be built.
+    """
+    if name == NONE:
+        return env, None
+    if name not in INTENTION_WRAPPERS:
+        raise WrapperError(f"intention {name!r}: unknown; choose from {', '.join(intention_names())}")
+    return _build(env, INTENTION_WRAPPERS[name], f"intention {name!r}"), f"intention:{name}"
+
+
+def wrap_predictor(env: Any, name: str) -> tuple[Any, str | None]:
+    """`env` under the trajectory predictor `name` (a table name or a checkpoint path), and its label.
+
+    Raises:
+        WrapperError: unknown name, missing checkpoint, or a model that cannot be loaded.
+    """
+    if name == NONE:
+        return env, None
+    what = f"predictor {name!r}"
+    if name in TRAJECTORY_WRAPPERS:
+        return _build(env, TRAJECTORY_WRAPPERS[name], what), f"trajectory:{name}"
+    if not Path(name).expanduser().is_file():
+        raise WrapperError(
+            f"{what}: not one of {', '.join(predictor_names())} nor an existing checkpoint file"
+        )
+    entry = WrapperEntry(CHECKPOINT_WRAPPER)
+    return _build(env, entry, what, model=str(Path(name).expanduser())), f"trajectory:{name}"
+
+
+def wrap(env: Any, intention: str = NONE, predictor: str = NONE) -> tuple[Any, list[str]]:
+    """`env` with the intention wrapper first and the trajectory predictor second, and the labels used.
+
+    The order is fixed, so a policy sees the same observation in every tool. On an error the env is closed.
+    """
+    used: list[str] = []
+    try:
+        env, label = wrap_intention(env, intention)
+        used += [label] if label else []
+        env, label = wrap_predictor(env, predictor)
+        used += [label] if label else []
+    except BaseException:
+        env.close()
+        raise
+    return env, used
