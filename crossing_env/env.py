@@ -7,6 +7,9 @@ terminated (collision, end of road) / truncated (scenario duration), both Python
 Change logs:
     - Reward terms (`crossing_env.reward`) use the evaluation's yield, TTC and braking definitions; new
       `time` and `near_miss` terms; `failing_to_yield` counts `crossing-eval`'s violated obligations.
+    - `info` carries the keys other Gymnasium tools read (`INFO_KEYS`): `crashed` (highway-env),
+      `passed_crossing`, `is_success` (SB3's callbacks), `cost` and `costs` (constrained RL, as in
+      Safety-Gymnasium and MetaDrive; `crossing_env.safety.step_costs`) and `speed`.
 """
 
 from __future__ import annotations
@@ -24,7 +27,8 @@ from gymnasium import spaces
 
 from crossing_env.observation import ObservationBuilder
 from crossing_env.reward import RewardTerms
-from crossing_env.types import CrossingObs, StepReturn
+from crossing_env.safety.step import COST_TERMS, step_costs
+from crossing_env.types import CrossingObs, GroundTruth, StepReturn
 from crossing_env.world import World
 from scenarios import load_scenario, scenario_from_dict, validate_scenario
 from scenarios.config import EgoConfig, EnvConfig, ScenarioConfig
@@ -32,6 +36,32 @@ from scenarios.overrides import apply_overrides, env_config_from_dict
 
 END_OF_ROAD_MARGIN = 10.0
 """The episode terminates when the ego's centre is this close to the end of the road (m)."""
+
+INFO_KEYS: tuple[str, ...] = (
+    "ground_truth",
+    "rewards",
+    "time",
+    "crashed",
+    "passed_crossing",
+    "is_success",
+    "cost",
+    "costs",
+    "speed",
+)
+"""Keys of the `info` dict of `reset` and `step` (docs/environment.md, "info"):
+
+- ``ground_truth``: the world's `GroundTruth` (for metrics only; the step's safety quantities attached);
+- ``rewards``: the named reward terms (``{}`` after `reset`);
+- ``time``: simulation time (s);
+- ``crashed``: bool, an ego collision began in this step (highway-env's name);
+- ``passed_crossing``: bool, the ego's rear is past the crossing's far edge (the conflict area's x_max);
+- ``is_success``: bool, ``passed_crossing`` with no collision and no violated yield obligation so far in
+  the episode (SB3's ``Monitor``/``EvalCallback`` read it at the episode's end);
+- ``cost``: float ≥ 0, the step's safety cost for constrained RL: the sum of ``costs``;
+- ``costs``: the unweighted indicators ``cost`` sums (`crossing_env.safety.step_costs`: ``collision``,
+  ``failing_to_yield``, ``near_miss``); all 0.0 after `reset`;
+- ``speed``: float, the ego's speed (m/s).
+"""
 
 
 def resolve_scenario(
@@ -116,7 +146,9 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
     the ego's heading is +x, so the frames differ by a translation only) with each slot's
     0.4 s position history, and M vehicle slots. Reward terms are reported in `info["rewards"]`; the
     world's ground truth (for metrics only) in `info["ground_truth"]`, with the step's safety quantities,
-    computed once for the reward and reused by `EpisodeMetrics`, attached as its `safety`.
+    computed once for the reward and reused by `EpisodeMetrics`, attached as its `safety`. `info` also has
+    the keys other tools read (`INFO_KEYS`): ``crashed``, ``passed_crossing``, ``is_success``, ``cost``
+    (with its terms in ``costs``) and ``speed``.
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 10}  # noqa: RUF012 - Gymnasium API
@@ -153,6 +185,8 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
         self.world: World | None = None
         self._reward_terms: RewardTerms | None = None
         self._renderer = None
+        self._collided = False
+        self._violated = False
 
     # ------------------------------------------------------------------ Gymnasium API
     def reset(
@@ -170,8 +204,9 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
         self.world = World(self.scenario, self.np_random, self.config)
         self._reward_terms = RewardTerms(self.scenario, self.config.dt, self.config.reward)
         self._observer.reset()
+        self._collided = self._violated = False
         gt = self.world.ground_truth()
-        info = {"ground_truth": gt, "rewards": {}, "time": gt.time}
+        info = self._info(gt, {}, dict.fromkeys(COST_TERMS, 0.0))
         if self.render_mode == "human":
             self.render()
         return self._observer.build(self.world), info
@@ -187,14 +222,34 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
         gt = world.ground_truth()
         assert self._reward_terms is not None  # set with the world in reset()
         rewards = self._reward_terms(gt, float(world.traffic.x[0] - x_before))
+        assert gt.safety is not None  # attached by the reward terms
+        costs = step_costs(gt, gt.safety)
+        self._collided = self._collided or bool(gt.collisions)
+        self._violated = self._violated or gt.safety.yield_violations > 0
         terminated = bool(gt.collisions) or bool(
             world.traffic.x[0] >= self.scenario.road.length - END_OF_ROAD_MARGIN
         )
         truncated = (not terminated) and bool(world.time >= self.scenario.duration - 1e-9)
-        info = {"ground_truth": gt, "rewards": rewards, "time": gt.time}
+        info = self._info(gt, rewards, costs)
         if self.render_mode == "human":
             self.render()
         return self._observer.build(world), float(sum(rewards.values())), terminated, truncated, info
+
+    def _info(self, gt: GroundTruth, rewards: dict[str, float], costs: dict[str, float]) -> dict[str, Any]:
+        """The `info` dict (`INFO_KEYS`), with Python bools and floats."""
+        rear = float(gt.ego_position[0]) - 0.5 * gt.ego_size[0]
+        passed = bool(rear >= gt.conflict_area.x_max)
+        return {
+            "ground_truth": gt,
+            "rewards": rewards,
+            "time": gt.time,
+            "crashed": bool(gt.collisions),
+            "passed_crossing": passed,
+            "is_success": passed and not self._collided and not self._violated,
+            "cost": float(sum(costs.values())),
+            "costs": costs,
+            "speed": float(abs(gt.ego_velocity[0])),
+        }
 
     def render(self, observation: dict[str, np.ndarray] | None = None) -> np.ndarray | None:
         """Top-down frame: `rgb_array` returns it, `human` shows it in a window.

@@ -1,11 +1,16 @@
 """Top-down pygame rendering (pygame-ce comes with highway-env); works headless for `rgb_array`.
 
 Orientation: +x to the right and +y *down*, the image convention the rerun viewer's 2D views use, so a
-frame and ``crossing-replay``'s recording of the same step look alike. Pedestrians are drawn to scale
-(at least `MIN_PED_PX` wide) with a heading tick and their state's colour; the overlay gives time, ego
-speed, the pedestrian and car signals and a colour legend. When the observation passed to `draw` holds
+frame and ``crossing-replay``'s recording of the same step look alike. The ego is drawn in its own colour
+with a white outline and labelled "ego". Pedestrians are drawn to scale (at least `MIN_PED_PX` wide) with a
+heading tick and their state's colour. The caption (top) gives the scenario, the renderer's `caption`
+(``crossing-replay video`` passes the policy and seed; the env knows neither), the time, the ego speed and
+the signals; the legend (bottom) the colours. When the observation passed to `draw` holds
 ``predicted_paths`` or ``crossing_intention`` (the predictor wrappers; see `ShowPredictions`), they are
-drawn too. Night scenes are dimmed.
+drawn too: intentions as a ring on every observed pedestrian and a percentage, dark on a light tag, for
+the nearest pedestrians whose tags fit without overlapping (`INTENTION_LABEL_RANGE`). An ego collision is
+marked where it happened (a red ring and cross) and named in a red banner, from its step to the end of the
+episode. Night scenes are dimmed (the overlays are not).
 """
 
 from __future__ import annotations
@@ -16,6 +21,13 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from crossing_env.observation import (
+    CROSSING_INTENTION_KEY,
+    PEDESTRIANS_KEY,
+    PREDICTED_PATHS_KEY,
+    PedestrianColumn,
+    PointColumn,
+)
 from crossing_env.types import PedState
 from scenarios.config import EnvConfig
 
@@ -26,6 +38,10 @@ COLOURS = {
     "stripe": (235, 235, 235),
     "lane": (220, 220, 120),
     "ego": (40, 110, 220),
+    "ego_outline": (255, 255, 255),
+    "tag": (245, 245, 235),
+    "tag_text": (20, 20, 20),
+    "collision": (230, 20, 20),
     "car": (200, 200, 60),
     "parked": (150, 150, 150),
     "outline": (20, 20, 20),
@@ -46,6 +62,9 @@ MIN_PED_PX = 5
 """Smallest pedestrian radius drawn, pixels (a 0.28 m body is 3 px at the default 10 px/m)."""
 NIGHT_DIM = 0.45
 """Brightness factor of night scenes."""
+INTENTION_LABEL_RANGE = 30.0
+"""Intention percentages are written only for pedestrians within this distance of the ego (m); rings are
+drawn for all."""
 LEGEND = (
     (PedState.APPROACHING, "approaching"),
     (PedState.WAITING, "waiting"),
@@ -57,7 +76,11 @@ LEGEND = (
 class TopDownRenderer:
     """Draws the world centred on the ego (+x right, +y down, as the rerun view)."""
 
-    def __init__(self, config: EnvConfig, human: bool = False) -> None:
+    def __init__(self, config: EnvConfig, human: bool = False, caption: str | None = None) -> None:
+        """A renderer of `config.render_size` frames; `caption` follows the scenario's name (policy, seed).
+
+        ``crossing-replay video`` passes e.g. ``"policy yielding   seed 3"``; the env's own `render` has none.
+        """
         if human and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
             os.environ.setdefault("SDL_VIDEODRIVER", "dummy")  # headless machines: draw off-screen
         import pygame
@@ -74,7 +97,13 @@ class TopDownRenderer:
         self.surface = pygame.Surface((self.width, self.height))
         pygame.font.init()
         self.font = pygame.font.Font(None, max(14, self.height // 18))
+        self.label_font = pygame.font.Font(None, max(14, self.height // 20))
         self.fps = 10
+        self.caption = caption
+        self._world_id: int | None = None
+        self._collisions: list[Any] = []
+        self._labels: list[Any] = []
+        """Screen rectangles already taken by labels in the frame being drawn."""
 
     def _to_px(self, x: float, y: float, cx: float, cy: float) -> tuple[int, int]:
         return (int(self.width / 2 + (x - cx) * self.scale), int(self.height / 2 + (y - cy) * self.scale))
@@ -90,24 +119,39 @@ class TopDownRenderer:
         geo, tr = world.geometry, world.traffic
         road = geo.road
         cx, cy = float(tr.x[0]), road.road_width / 2
+        if id(world) != self._world_id:  # a new episode: forget the previous one's collisions
+            self._world_id = id(world)
+            self._collisions = []
+        # The step's new collisions (a frame drawn twice for one step adds nothing).
+        self._collisions += [ev for ev in getattr(world, "collisions", ()) if ev not in self._collisions]
+        self._labels = []
         s.fill(COLOURS["grass"])
         self._draw_road(world, cx, cy)
+        ego_rect = None
         for i in np.flatnonzero(tr.active):
             x, y = tr.x[i], tr.y[i]
             hl, hw = tr.length[i] / 2, tr.width[i] / 2
             colour = COLOURS["ego"] if i == 0 else COLOURS["parked" if tr.parked[i] else "car"]
             rect = self._rect(x - hl, y - hw, x + hl, y + hw, cx, cy)
             pg.draw.rect(s, colour, rect)
-            pg.draw.rect(s, COLOURS["outline"], rect, 1)
+            if i == 0:
+                ego_rect = rect
+            else:
+                pg.draw.rect(s, COLOURS["outline"], rect, 1)
         if observation is not None:
-            self._draw_predictions(observation, world, cx, cy)
+            self._draw_prediction_paths(observation, world, cx, cy)
         self._draw_pedestrians(world, cx, cy)
         if world.scenario.night:
             dark = pg.Surface((self.width, self.height))
             dark.fill((10, 10, 40))
             dark.set_alpha(int(255 * (1.0 - NIGHT_DIM)))
             s.blit(dark, (0, 0))
+        if ego_rect is not None:
+            self._mark_ego(ego_rect)
         self._draw_overlay(world)
+        if observation is not None:
+            self._draw_intentions(observation, world, cx, cy)
+        self._draw_collisions(cx, cy)
         if self.human:
             self.window.blit(s, (0, 0))
             pg.event.pump()
@@ -166,33 +210,115 @@ class TopDownRenderer:
                 )
                 pg.draw.line(s, COLOURS["outline"], centre, tip, 2)
 
-    def _draw_predictions(self, obs: dict[str, np.ndarray], world: Any, cx: float, cy: float) -> None:
-        """Predicted paths (magenta) and crossing intentions (a ring and a percentage) of observed slots."""
-        pg, s = self.pygame, self.surface
-        peds = np.asarray(obs.get("pedestrians", np.zeros((0, 8))))
+    def _observed(self, obs: dict[str, np.ndarray], world: Any) -> tuple[np.ndarray, np.ndarray]:
+        """World positions (k, 2) of the observed pedestrian slots and the slots' indices."""
+        peds = np.asarray(obs.get(PEDESTRIANS_KEY, np.zeros((0, len(PedestrianColumn)))))
         if peds.size == 0:
+            return np.zeros((0, 2)), np.zeros(0, dtype=np.intp)
+        present = np.flatnonzero(peds[:, PedestrianColumn.PRESENCE] > 0.5)
+        ego = np.array([float(world.traffic.x[0]), float(world.traffic.y[0])])
+        rel = peds[present][:, [PedestrianColumn.DX, PedestrianColumn.DY]].astype(np.float64)
+        return ego + rel, present
+
+    def _draw_prediction_paths(self, obs: dict[str, np.ndarray], world: Any, cx: float, cy: float) -> None:
+        """Predicted paths (magenta) of the observed slots, under the pedestrians."""
+        paths = obs.get(PREDICTED_PATHS_KEY)
+        if paths is None:
             return
+        pg, s = self.pygame, self.surface
         ego = (float(world.traffic.x[0]), float(world.traffic.y[0]))
-        present = np.flatnonzero(peds[:, 0] > 0.5)
-        paths = obs.get("predicted_paths")
-        if paths is not None:
-            for k in present:
-                start = (ego[0] + float(peds[k, 1]), ego[1] + float(peds[k, 2]))
-                pts = [self._to_px(*start, cx, cy)]
-                pts += [self._to_px(ego[0] + float(p[0]), ego[1] + float(p[1]), cx, cy) for p in paths[k]]
-                pg.draw.lines(s, COLOURS["prediction"], False, pts, 2)
-        intent = obs.get("crossing_intention")
-        if intent is not None:
-            for k in present:
-                p = float(np.clip(intent[k], 0.0, 1.0))
-                centre = self._to_px(ego[0] + float(peds[k, 1]), ego[1] + float(peds[k, 2]), cx, cy)
-                colour = (int(210 + 45 * p), int(210 - 150 * p), int(210 - 210 * p))  # grey → orange
-                pg.draw.circle(s, colour, centre, MIN_PED_PX + 5, 2)
-                label = self.font.render(f"{100 * p:.0f}%", True, colour)
-                s.blit(label, (centre[0] + MIN_PED_PX + 6, centre[1] - label.get_height()))
+        positions, present = self._observed(obs, world)
+        for (px, py), k in zip(positions, present, strict=True):
+            pts = [self._to_px(px, py, cx, cy)]
+            pts += [
+                self._to_px(ego[0] + float(p[PointColumn.X]), ego[1] + float(p[PointColumn.Y]), cx, cy)
+                for p in paths[k]
+            ]
+            pg.draw.lines(s, COLOURS["prediction"], False, pts, 2)
+
+    def _draw_intentions(self, obs: dict[str, np.ndarray], world: Any, cx: float, cy: float) -> None:
+        """Crossing intentions: a ring (grey → orange) on every observed pedestrian, and a percentage tag.
+
+        Tags (dark text on light) go to the nearest pedestrians first, within `INTENTION_LABEL_RANGE`, on
+        the first side of the pedestrian where they cover no other label; the others keep their ring only.
+        """
+        intent = obs.get(CROSSING_INTENTION_KEY)
+        if intent is None:
+            return
+        pg, s = self.pygame, self.surface
+        positions, present = self._observed(obs, world)
+        ego = np.array([float(world.traffic.x[0]), float(world.traffic.y[0])])
+        order = np.argsort(np.hypot(*(positions - ego).T)) if len(present) else []
+        frame = pg.Rect(0, 0, self.width, self.height)
+        r = MIN_PED_PX + 5
+        shares = [float(np.clip(intent[k], 0.0, 1.0)) for k in present]
+        colours = [
+            (int(210 + 45 * p), int(210 - 150 * p), int(210 - 210 * p)) for p in shares
+        ]  # grey → orange
+        centres = [self._to_px(*xy, cx, cy) for xy in positions]
+        for centre, colour in zip(centres, colours, strict=True):  # every ring first: no tag under a ring
+            pg.draw.circle(s, colour, centre, r, 2)
+        rings = [pg.Rect(c[0] - r, c[1] - r, 2 * r, 2 * r) for c in centres]
+        for j in order:
+            if float(np.hypot(*(positions[j] - ego))) > INTENTION_LABEL_RANGE:
+                continue
+            text = self.label_font.render(f"{100 * shares[j]:.0f}%", True, COLOURS["tag_text"])
+            w, h = text.get_width() + 6, text.get_height() + 2
+            x, y = centres[j]
+            for dx, dy in ((r + 2, -h - 1), (r + 2, 1), (-r - 2 - w, -h - 1), (-r - 2 - w, 1)):
+                tag = pg.Rect(x + dx, y + dy, w, h)
+                if frame.contains(tag) and tag.collidelist(self._labels) < 0 and tag.collidelist(rings) < 0:
+                    self._tag(text, tag, colours[j])
+                    break
+
+    def _tag(self, text: Any, rect: Any, border: tuple[int, int, int]) -> None:
+        """Blit `text` on a light tag with a coloured border at `rect`; the rectangle is taken."""
+        pg, s = self.pygame, self.surface
+        pg.draw.rect(s, COLOURS["tag"], rect)
+        pg.draw.rect(s, border, rect, 1)
+        s.blit(text, (rect.x + 3, rect.y + 1))
+        self._labels.append(rect)
+
+    def _mark_ego(self, rect: Any) -> None:
+        """A white outline around the ego's box (over the night dimming) and an "ego" tag above it."""
+        pg, s = self.pygame, self.surface
+        pg.draw.rect(s, COLOURS["ego_outline"], rect.inflate(4, 4), 2)
+        pg.draw.rect(s, COLOURS["outline"], rect.inflate(8, 8), 1)
+        text = self.label_font.render("ego", True, COLOURS["tag_text"])
+        w, h = text.get_width() + 6, text.get_height() + 2
+        tag = pg.Rect(rect.centerx - w // 2, rect.top - h - 6, w, h)
+        if tag.top < 0:
+            tag.top = rect.bottom + 6
+        self._tag(text, tag, COLOURS["ego"])
+
+    def _draw_collisions(self, cx: float, cy: float) -> None:
+        """Each ego collision of the episode so far: a red ring and cross where it happened, and a banner."""
+        if not self._collisions:
+            return
+        pg, s = self.pygame, self.surface
+        for ev in self._collisions:
+            x, y = self._to_px(float(ev.position[0]), float(ev.position[1]), cx, cy)
+            pg.draw.circle(s, COLOURS["collision"], (x, y), 14, 3)
+            pg.draw.line(s, COLOURS["collision"], (x - 9, y - 9), (x + 9, y + 9), 3)
+            pg.draw.line(s, COLOURS["collision"], (x - 9, y + 9), (x + 9, y - 9), 3)
+        ev = self._collisions[0]
+        more = f" (+{len(self._collisions) - 1})" if len(self._collisions) > 1 else ""
+        text = self.font.render(
+            f"COLLISION with a {ev.kind} at t {ev.time:.1f} s, {ev.relative_speed:.1f} m/s{more}",
+            True,
+            (255, 255, 255),
+        )
+        box = pg.Rect(0, 0, text.get_width() + 12, text.get_height() + 6)
+        box.midbottom = (self.width // 2, self.height - self.font.get_height() - 12)
+        pg.draw.rect(s, COLOURS["collision"], box)
+        pg.draw.rect(s, COLOURS["outline"], box, 1)
+        s.blit(text, (box.x + 6, box.y + 3))
 
     def _draw_overlay(self, world: Any) -> None:
-        """Time, ego speed, signal states (top left) and the pedestrian colour legend (bottom)."""
+        """The caption (top left) and the pedestrian colour legend (bottom).
+
+        Caption: scenario, `caption` and time on the first line, ego speed and signal states on the second.
+        """
         pg, s = self.pygame, self.surface
         speed = float(world.traffic.speed[0])
         green = world.geometry.pedestrian_green(world.time)
@@ -201,8 +327,12 @@ class TopDownRenderer:
             if green is None
             else f"ped {'GREEN' if green else 'RED'} / car {'RED' if green else 'GREEN'}"
         )
-        night = "  night" if world.scenario.night else ""
-        lines = [f"t {world.time:5.1f} s   ego {speed:4.1f} m/s ({3.6 * speed:3.0f} km/h)   {signal}{night}"]
+        night = "   night" if world.scenario.night else ""
+        head = "   ".join(x for x in (world.scenario.name or "custom scenario", self.caption) if x)
+        lines = [
+            f"{head}   t {world.time:5.1f} s",
+            f"ego {speed:4.1f} m/s ({3.6 * speed:3.0f} km/h)   {signal}{night}",
+        ]
         y = 4
         for text in lines:
             label = self.font.render(text, True, COLOURS["text"])

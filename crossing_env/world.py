@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from crossing_env.conflict import ConflictScript, draw_plan, occluder_slot
 from crossing_env.pedestrians.crossing_decisions import CrossingDecisionModel, make_decision_model
 from crossing_env.pedestrians.population import CarSnapshot, PedestrianPopulation
 from crossing_env.pedestrians.transitions import WAITING
@@ -36,7 +37,18 @@ class World:
         self.dt = float(self.config.dt)
         self.time = 0.0
         self.geometry = RoadGeometry(scenario.road, scenario.crossing)
+        # A timed conflict is drawn first (its draws do not depend on anything else in the episode).
+        self.conflict: ConflictScript | None = None
+        """The scenario's timed conflict (`plan`: what was drawn; `stepped_off_at`), or None."""
+        if scenario.conflict is not None:
+            self.conflict = ConflictScript(draw_plan(scenario, self.geometry, rng), scenario)
         self.traffic = Traffic(scenario, self.geometry, rng)
+        if self.conflict is not None:
+            plan = self.conflict.plan
+            self.traffic.speed[0] = min(plan.ego_speed, scenario.ego.max_speed)
+            slot = occluder_slot(scenario)
+            if plan.occluder_x is not None and slot is not None:
+                self.traffic.x[slot] = plan.occluder_x
         self.pedestrians = PedestrianPopulation(
             scenario,
             self.geometry,
@@ -54,6 +66,8 @@ class World:
         self.background_contacts = 0
         self._ego_vehicle_contact = np.zeros(self.traffic.capacity, dtype=bool)
         self.conflict_area = self.geometry.conflict_area(scenario.ego.lane)
+        if self.conflict is not None:
+            self.conflict.spawn(self.pedestrians)
         self._refresh_masks()
 
     def _refresh_masks(self) -> None:
@@ -80,10 +94,22 @@ class World:
         self.time += dt
         green = self.geometry.pedestrian_green(self.time)
         peds, tr = self.pedestrians, self.traffic
+        if self.conflict is not None:
+            ego = (float(tr.x[0]), float(tr.speed[0]), float(tr.length[0]))
+            self.conflict.step(self.time, ego, green is False, peds)
         peds.step(self.time, self._car_snapshot(), green)
         # Background drivers: obstacles are pedestrians on the road, at the kerb, or on the zebra
         # (positions have not moved since the masks were refreshed at the end of the last step).
-        at_zebra = peds.anyone_at_zebra(self.ped_on_crossing)
+        at_zebra = tr.give_way(
+            self.time,
+            dt,
+            peds.position,
+            peds.velocity,
+            peds.radius,
+            self.ped_on_crossing & peds.active,
+            peds.waiting_at_zebra(),
+            self.time - peds.wait_time,
+        )
         acc = tr.background_accelerations(
             peds.position,
             self.ped_on_road,

@@ -1,12 +1,15 @@
 """The files of a run, each written atomically into the output folder.
 
-- ``results.json``: the settings, a summary per policy, per (scenario, policy) and overall, and every
-  episode's metrics (`crossing_env.safety.EpisodeResult.as_dict`);
-- ``episodes.csv`` (one row per episode), ``summary.csv`` (one row per policy and "overall") and
+- ``results.json``: the settings, a summary per policy and per (scenario, policy) plus the world-health
+  figures, and every episode's metrics (`crossing_env.safety.EpisodeResult.as_dict`);
+- ``episodes.csv`` (one row per episode), ``summary.csv`` (one row per policy; no row pools policies) and
   ``per_scenario.csv`` (one row per scenario and policy); missing or undefined values are empty cells;
-- ``report.md`` (pooled and per-scenario tables, `crossing_eval.report`) and ``table.txt`` (the printed
-  table);
-- ``safety_vs_efficiency.png`` and ``min_ttc.png`` (ECDF per policy; matplotlib, Agg backend);
+- ``report.md`` (per-policy and per-scenario tables and the column definitions, `crossing_eval.report`)
+  and ``table.txt`` (the printed table);
+- ``safety_vs_efficiency.png`` (a legend instead of point labels, so no label overlaps another; policies
+  at the same point are drawn side by side) and ``min_ttc.png`` (ECDF per policy; each curve has its own
+  dash pattern and marker, wider curves under narrower ones, and the legend names identical curves);
+  matplotlib, Agg backend;
 - ``worst/*.json``: episode logs of the worst episodes (collisions first, then lowest min TTC; the five
   worst overall plus the worst of every other policy) that ``crossing-replay episode`` re-runs.
 
@@ -60,6 +63,8 @@ CSV_EPISODE_FIELDS = (
     "max_drac_crossing",
     "hard_braking_events",
     "max_deceleration",
+    "max_speed_over_limit",
+    "time_over_speed_limit",
     "yield_obligations",
     "yield_compliant",
     "yield_violations",
@@ -127,13 +132,12 @@ def _write_episodes_csv(records: Sequence[EpisodeRecord], out: Path) -> None:
 
 
 def _write_summary_csv(summary: dict[str, Any], policies: Sequence[str], out: Path) -> None:
-    """One row per policy and "overall"; the scalar aggregates plus the collision-rate interval."""
-    keys = [k for k in summary["overall"] if not isinstance(summary["overall"][k], tuple | list)]
+    """One row per policy (no row pools policies); the scalar aggregates plus the collision-rate interval."""
+    entries = [(p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]]
+    first = entries[0][1] if entries else {}
+    keys = [k for k in first if not isinstance(first[k], tuple | list)]
     rows = []
-    for name, agg in [
-        *((p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]),
-        ("overall", summary["overall"]),
-    ]:
+    for name, agg in entries:
         lo, hi = agg["collision_ci95"]
         rows.append([name, *(_csv_value(agg[k]) for k in keys), _csv_value(lo), _csv_value(hi)])
     header = ["policy", *keys, "collision_ci95_low", "collision_ci95_high"]
@@ -143,6 +147,12 @@ def _write_summary_csv(summary: dict[str, Any], policies: Sequence[str], out: Pa
 # ---------------------------------------------------------------------------------------------------------
 # Plots
 # ---------------------------------------------------------------------------------------------------------
+
+
+LINE_STYLES: tuple[Any, ...] = ("-", (0, (6, 2)), (0, (1, 1.5)), "-.", (0, (8, 2, 1, 2, 1, 2)), (0, (3, 3)))
+"""Dash patterns of the min-TTC curves, one per policy (cycled), so that coinciding curves stay visible."""
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*", "<", ">")
+"""Marker per policy (cycled) in both plots."""
 
 
 def _plot(
@@ -162,36 +172,84 @@ def _plot(
         ("min_ttc.png", lambda ax: _draw_min_ttc(ax, records, names)),
     ]
     for file_name, draw in plots:
-        fig, ax = plt.subplots(figsize=(6.5, 4.5))
+        fig, ax = plt.subplots(figsize=(9.0, 4.8))
         draw(ax)
         fig.tight_layout()
         _save_fig(fig, out / file_name)
         plt.close(fig)
 
 
+def dodge_offsets(
+    points: Sequence[tuple[float, float]], tolerance: float = 0.02, step: float = 9.0
+) -> list[float]:
+    """Horizontal offsets (in points) that set apart markers at (nearly) the same place.
+
+    Points closer than `tolerance` of the data range on both axes form a group; a group of k points is
+    spread symmetrically, `step` points apart. Single points keep offset 0.
+    """
+    arr = np.array([(x if math.isfinite(x) else 0.0, y if math.isfinite(y) else 0.0) for x, y in points])
+    if arr.size == 0:
+        return []
+    span = np.maximum(arr.max(axis=0) - arr.min(axis=0), 1e-9)
+    group = [-1] * len(points)
+    for i in range(len(points)):
+        if group[i] < 0:
+            group[i] = i
+            for j in range(i + 1, len(points)):
+                if group[j] < 0 and np.all(np.abs(arr[j] - arr[i]) <= tolerance * span):
+                    group[j] = i
+    offsets = []
+    for i, g in enumerate(group):
+        members = [j for j, h in enumerate(group) if h == g]
+        offsets.append((members.index(i) - (len(members) - 1) / 2) * step)
+    return offsets
+
+
 def _draw_safety_vs_efficiency(ax: Axes, summary: dict[str, Any], names: Sequence[str]) -> None:
-    for name in names:
-        agg = summary["per_policy"][name]
+    """One marker per policy with its interval; the names are in the legend, so no label overlaps."""
+    from matplotlib.transforms import offset_copy
+
+    aggs = [summary["per_policy"][name] for name in names]
+    points = [(agg["censored_mean_delay"], agg["collision_rate"]) for agg in aggs]
+    offsets = dodge_offsets(points)
+    colours = plt_colours(len(names))
+    for i, (name, agg, (x, rate)) in enumerate(zip(names, aggs, points, strict=True)):
         lo, hi = agg["collision_ci95"]
-        rate = agg["collision_rate"]
-        x = agg["censored_mean_delay"]
-        ax.errorbar(x, rate, yerr=[[rate - lo], [hi - rate]], fmt="o", capsize=4, label=name)
-        ax.annotate(name, (x, rate), textcoords="offset points", xytext=(6, 6), fontsize=8)
+        ax.update_datalim([(x, lo), (x, hi)])  # the shifted artists do not enter the autoscaling
+        shift = offset_copy(ax.transData, fig=ax.figure, x=offsets[i], y=0.0, units="points")
+        ax.errorbar(
+            x,
+            rate,
+            yerr=[[rate - lo], [hi - rate]],
+            fmt=MARKERS[i % len(MARKERS)],
+            markersize=7,
+            capsize=4,
+            color=colours[i],
+            markeredgecolor="black",
+            transform=shift,
+            label=f"{name}: collisions {rate:.2f}, delay {x:.1f} s",
+        )
     ax.set_xlabel("delay at the crossing, non-passing episodes at the duration (s)  → less efficient")
     ax.set_ylabel("collision rate (95% Wilson CI)  → less safe")
     ax.set_title("Safety vs efficiency per policy")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.margins(x=0.15, y=0.1)
+    ax.autoscale_view()
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
 
 
 def _draw_min_ttc(ax: Axes, records: Sequence[EpisodeRecord], names: Sequence[str]) -> None:
-    """Empirical CDF of the episode minimum TTC per policy (curves do not hide each other as bars do).
+    """Empirical CDF of the episode minimum TTC per policy.
 
-    Episodes without a finite TTC never enter the curve, so each curve ends at its finite fraction.
+    Episodes without a finite TTC never enter the curve, so each curve ends at its finite fraction. The
+    curves are drawn widest first, each with its own dash pattern and marker, so a curve identical to an
+    earlier one still shows under it; the legend says which curves coincide.
     """
     cap = 10.0
     colours = plt_colours(len(names))
-    for name, colour in zip(names, colours, strict=True):
+    curves: list[tuple[str, np.ndarray, np.ndarray]] = []
+    count = len(names)
+    for i, (name, colour) in enumerate(zip(names, colours, strict=True)):
         vals = np.array(
             [
                 r.result["min_ttc"]
@@ -204,15 +262,33 @@ def _draw_min_ttc(ax: Axes, records: Sequence[EpisodeRecord], names: Sequence[st
         vals = np.sort(vals[np.isfinite(vals)])
         xs = np.concatenate([[0.0], np.minimum(vals, cap), [cap]])
         ys = np.concatenate([[0.0], np.arange(1, vals.size + 1) / max(n, 1), [vals.size / max(n, 1)]])
-        ax.step(xs, ys, where="post", linewidth=1.6, color=colour, label=f"{name} (n={n})")
+        same = [other for other, oxs, oys in curves if np.array_equal(oxs, xs) and np.array_equal(oys, ys)]
+        label = f"{name} (n={n})" + (f", same curve as {same[0]}" if same else "")
+        curves.append((name, xs, ys))
+        width = 1.6 + 3.0 * (count - 1 - i) / max(count - 1, 1)
+        ax.step(
+            xs,
+            ys,
+            where="post",
+            linewidth=width,
+            linestyle=LINE_STYLES[i % len(LINE_STYLES)],
+            marker=MARKERS[i % len(MARKERS)],
+            markersize=4 + 0.8 * width,
+            markevery=max(1, xs.size // 8),
+            markerfacecolor="none" if same else colour,
+            color=colour,
+            alpha=0.9,
+            zorder=2 + i,
+            label=label,
+        )
     ax.axvline(1.5, color="black", linestyle=":", linewidth=1.2, label="serious conflict (1.5 s)")
     ax.set_xlim(0.0, cap)
-    ax.set_ylim(0.0, 1.0)
+    ax.set_ylim(0.0, 1.02)
     ax.set_xlabel(f"episode minimum TTC to a pedestrian (s; axis cut at {cap:g})")
     ax.set_ylabel("fraction of episodes with min TTC ≤ x")
     ax.set_title("Minimum TTC per policy (ECDF; 'never' episodes stay off the curve)")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="lower right")
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0)
 
 
 def plt_colours(n: int) -> list[Any]:

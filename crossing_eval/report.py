@@ -1,9 +1,9 @@
-"""The per scenario x policy report: ``report.md`` (pooled and per-scenario tables) and its CSV rows.
+"""The report: ``report.md`` (per-policy and per-scenario tables, column definitions) and its CSV rows.
 
-The printed table pools every scenario per policy; the scenario x policy numbers are what a reader
-compares policies on, so they get their own table. Custom scenario files are named by the scenario's
-``name`` field, not their path. Missing values are one convention everywhere: "-" in text and Markdown,
-an empty cell in CSV, ``null`` in JSON.
+The printed table pools every scenario per policy (never policies); the scenario x policy numbers are
+what a reader compares policies on, so they get their own table. Custom scenario files are named by
+the scenario's ``name`` field, not their path. Missing values are one convention everywhere: "-" in
+text and Markdown, an empty cell in CSV, ``null`` in JSON.
 """
 
 from __future__ import annotations
@@ -13,13 +13,16 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from crossing_eval.summary import TABLE_COLUMNS, _row
+from crossing_eval.summary import TABLE_COLUMNS, _row, format_world_health
 from scenarios import load_scenario
 
 SCENARIO_CSV_FIELDS = (
     "episodes",
     "collision_rate",
     "pedestrian_collision_rate",
+    "min_separation_min",
+    "min_separation_p50",
+    "close_pass_rate",
     "min_ttc_p5",
     "min_ttc_p50",
     "serious_conflict_rate",
@@ -28,6 +31,9 @@ SCENARIO_CSV_FIELDS = (
     "hard_brakes_per_episode",
     "yield_obligations",
     "yield_compliance",
+    "speeding_rate",
+    "max_speed_over_limit_max",
+    "time_over_speed_limit_mean",
     "pass_rate",
     "mean_delay",
     "censored_mean_delay",
@@ -90,25 +96,41 @@ def report_markdown(
     labels: Mapping[str, str],
     settings: Mapping[str, Any],
 ) -> str:
-    """``report.md``: the settings, the pooled table and one table per scenario (rows: policies)."""
-    header = [c for c, _ in TABLE_COLUMNS]
-    pooled = [_row(p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]]
-    pooled.append(_row("overall", summary["overall"]))
+    """``report.md``: the settings, the per-policy table, one table per scenario, the column definitions."""
+    header = [c.header for c in TABLE_COLUMNS]
+    per_policy = [_row(p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]]
     parts = [
         "# crossing-eval report",
         "",
         f"{settings.get('episodes')} episode(s) per scenario and policy, base seed {settings.get('seed')},"
         f" predictor {settings.get('predictor')}, intention {settings.get('intention')}.",
-        "Collision rates with 95% Wilson intervals; min TTC percentiles over episode minima; the delay"
-        " counts episodes that never pass at the scenario's duration (censored); '-' = undefined.",
+        "One row per policy; no row pools different policies. The columns are defined at the end"
+        " ('-' = undefined).",
         "",
-        "## All scenarios pooled",
+        "## Per policy, all scenarios of the run",
         "",
-        _markdown(header, pooled),
+        _markdown(header, per_policy),
     ]
     by_scenario: dict[str, list[list[str]]] = {}
     for scenario, policy, agg in _pairs(summary, labels, policies):
         by_scenario.setdefault(scenario, []).append(_row(policy, agg))
     for scenario, rows in by_scenario.items():
         parts += ["", f"## {scenario}", "", _markdown(header, rows)]
+    parts += ["", "## World health", "", format_world_health(summary) + "."]
+    parts += ["", "## Definitions", "", *definitions_markdown()]
     return "\n".join(parts) + "\n"
+
+
+def definitions_markdown() -> list[str]:
+    """The definitions section: one bullet per table column (`crossing_eval.summary.TABLE_COLUMNS`)."""
+    lines = [f"- **{c.header}**: {c.definition}" for c in TABLE_COLUMNS]
+    lines.append(
+        "- **world health**: contacts between background cars and pedestrians over every episode of the run"
+        " (the ego is not involved), with the fraction of episodes that had one (95% Wilson interval)."
+    )
+    lines.append(
+        "- Percentiles are over episodes (one value per episode: its minimum or maximum); 95% intervals"
+        " are Wilson score intervals; `per_scenario.csv` and `summary.csv` hold the same figures unrounded"
+        " (an empty cell = undefined, `inf` = never)."
+    )
+    return lines

@@ -69,10 +69,14 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
     pedestrian_collision_ci95; compliant/noncompliant_pedestrian_collisions; mean_impact_speed;
     min_ttc_p5/p50 (episode minima, inf ignored), min_ttc_finite_fraction (episodes with a finite minimum
     TTC, to read the percentiles against) and serious_conflict_rate (episodes with min TTC <
-    `serious_ttc`); min_separation_p5/p50; pet_pedestrian_first_p5/p50, pet_ego_first_p5/p50 and
+    `serious_ttc`); min_separation_min/p5/p50 (episode minima, the smallest over episodes first) and
+    close_pass_rate (episodes with a minimum separation < `clearance`); pet_pedestrian_first_p5/p50,
+    pet_ego_first_p5/p50 and
     critical_pet_rate (episodes with a PET < `critical_pet`); simultaneous_occupancies; drac_crossing_mean /
     _max and drac_following_max; hard_brakes_per_episode (events), comfort_violations_per_episode (steps),
-    max_deceleration_mean; yield_obligations, yield_compliance (= compliant / obligations) and
+    max_deceleration_mean; speeding_rate (episodes with any time over the speed limit),
+    max_speed_over_limit_max/_mean (the episodes' largest excess, m/s) and time_over_speed_limit_mean
+    (s per episode); yield_obligations, yield_compliance (= compliant / obligations) and
     yield_compliance_ci95; unneeded_stops_per_episode; pass_rate, mean_delay and mean_time_to_pass
     (episodes that passed); mean_pedestrian_wait; mean_distance; world health, which the ego is not part of:
     background_collisions (car–pedestrian contacts), background_collisions_legal (with a legal pedestrian),
@@ -94,7 +98,10 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
     obligations = sum(r.yield_obligations for r in results)
     compliant = sum(r.yield_compliant for r in results)
     ttc5, ttc50 = finite_percentiles(min_ttc, (5, 50))
-    sep5, sep50 = finite_percentiles(col("min_separation"), (5, 50))
+    min_sep = col("min_separation")
+    sep0, sep5, sep50 = finite_percentiles(min_sep, (0, 5, 50))
+    over = col("max_speed_over_limit")
+    over_time = col("time_over_speed_limit")
     pp5, pp50 = finite_percentiles(pet_p, (5, 50))
     pe5, pe50 = finite_percentiles(pet_e, (5, 50))
     passed = np.array([r.passed_crossing for r in results])
@@ -116,8 +123,10 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
         "min_ttc_p50": ttc50,
         "min_ttc_finite_fraction": float(np.mean(np.isfinite(min_ttc))),
         "serious_conflict_rate": float(np.mean(min_ttc < cfg.serious_ttc)),
+        "min_separation_min": sep0,
         "min_separation_p5": sep5,
         "min_separation_p50": sep50,
+        "close_pass_rate": float(np.mean(min_sep < cfg.clearance)),
         "pet_pedestrian_first_p5": pp5,
         "pet_pedestrian_first_p50": pp50,
         "pet_ego_first_p5": pe5,
@@ -130,6 +139,10 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
         "hard_brakes_per_episode": float(col("hard_braking_events").mean()),
         "comfort_violations_per_episode": float(col("comfort_violation_steps").mean()),
         "max_deceleration_mean": float(col("max_deceleration").mean()),
+        "speeding_rate": float(np.mean(over_time > 0.0)),
+        "max_speed_over_limit_max": float(over.max()),
+        "max_speed_over_limit_mean": float(over.mean()),
+        "time_over_speed_limit_mean": float(over_time.mean()),
         "yield_obligations": obligations,
         "yield_compliance": compliant / obligations if obligations else math.nan,
         "yield_compliance_ci95": wilson_interval(compliant, obligations),

@@ -1,36 +1,122 @@
-"""Summaries of a run (per policy, per scenario and policy, overall) and the printed table."""
+"""Summaries of a run (per policy, per scenario and policy) and the printed table.
+
+No figure pools different policies: a collision rate over several policies describes none of them. The
+only number over every episode is the world-health line (background car–pedestrian contacts, which the
+ego is not part of), kept apart from the table.
+"""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
-from crossing_env.safety import EpisodeResult
+from crossing_env.safety import DEFAULT_METRICS, EpisodeResult
 from crossing_eval.statistics import aggregate, censored_delay
 from crossing_eval.tasks import EpisodeRecord
 from scenarios import load_scenario
 
-TABLE_COLUMNS = (
-    ("policy", "policy"),
-    ("n", "episodes"),
-    ("collision rate [95% CI]", None),
-    ("minTTC p5/p50 s", None),
-    ("PET p5 s", "pet_pedestrian_first_p5"),
-    ("DRAC mean", "drac_crossing_mean"),
-    ("hard brakes/ep", "hard_brakes_per_episode"),
-    ("yield compl. (n)", None),
-    ("pass rate", "pass_rate"),
-    ("delay s (censored)", "censored_mean_delay"),
+CLOSE_MARK = "!"
+"""Appended to a table cell when some episode passed a pedestrian closer than `MetricsConfig.clearance`."""
+
+_CFG = DEFAULT_METRICS
+
+
+@dataclass(frozen=True)
+class Column:
+    """One table column: header, `aggregate` key (None if it combines several) and definition (report.md)."""
+
+    header: str
+    key: str | None
+    definition: str
+
+
+TABLE_COLUMNS: tuple[Column, ...] = (
+    Column("policy", None, "The policy (one row each; rows never pool policies)."),
+    Column("n", "episodes", "Episodes run (scenarios x episodes per scenario)."),
+    Column(
+        "collision rate [95% CI]",
+        None,
+        "Fraction of episodes with any ego collision (pedestrian or vehicle), with its 95% Wilson score"
+        " interval.",
+    ),
+    Column(
+        "min sep m (min/p50)",
+        None,
+        "Each episode's minimum ego-pedestrian footprint distance (box to disc, m; negative = overlap):"
+        " the smallest over the episodes / their median. '-' = no pedestrian in any episode. A trailing"
+        f" '{CLOSE_MARK}' marks a pass closer than the {_CFG.clearance:g} m clearance.",
+    ),
+    Column(
+        "minTTC p5/p50 s",
+        None,
+        "Each episode's minimum ego-pedestrian time to collision (box-disc, constant velocities, not"
+        " evaluated while the ego stands): 5th percentile / median over the episodes with a finite"
+        " minimum. '-' = no episode was ever on a collision course, which is not the same as no conflict:"
+        f" a trailing '{CLOSE_MARK}' says that some episode passed a pedestrian closer than"
+        f" {_CFG.clearance:g} m all the same (see min sep), whatever the TTC.",
+    ),
+    Column(
+        "PET p5 s",
+        "pet_pedestrian_first_p5",
+        "Post-encroachment time, pedestrian first: from a pedestrian leaving the conflict area (the ego's"
+        " lane on the crossing) to the ego entering it; 5th percentile of the episode minima.",
+    ),
+    Column(
+        "DRAC mean",
+        "drac_crossing_mean",
+        "Deceleration rate to avoid a crash (m/s²) against pedestrians holding the conflict area first:"
+        " mean over episodes of each episode's maximum.",
+    ),
+    Column(
+        "hard brakes/ep",
+        "hard_brakes_per_episode",
+        f"Hard-braking manoeuvres (runs of steps decelerating ≥ {_CFG.hard_braking_threshold:g} m/s²) per"
+        " episode.",
+    ),
+    Column(
+        "yield compl. (n)",
+        None,
+        "Yield obligations met / obligations (zebra, or signalised crossing on pedestrian green), and the"
+        " number of obligations; '-' = none arose.",
+    ),
+    Column(
+        "over limit m/s",
+        "max_speed_over_limit_max",
+        "Speeding: the largest ego speed above the scenario's speed limit in any episode (m/s; 0 = never"
+        " above).",
+    ),
+    Column(
+        "over limit s/ep",
+        "time_over_speed_limit_mean",
+        "Speeding: time driven above the speed limit, mean per episode (s).",
+    ),
+    Column(
+        "pass rate",
+        "pass_rate",
+        f"Fraction of episodes in which the ego centre reached {_CFG.delay_margin:g} m past the crossing's"
+        " far edge (the delay target).",
+    ),
+    Column(
+        "delay s (censored)",
+        "censored_mean_delay",
+        "Mean delay over all episodes. An episode's delay is the time from t = 0 until the ego centre"
+        f" reaches the delay target ({_CFG.delay_margin:g} m past the crossing's far edge; linear"
+        " interpolation between steps) minus the time that distance takes at the speed limit (negative"
+        " = faster than the limit). Censoring: an episode that never reaches the target counts with a"
+        " delay equal to its scenario's duration, so a policy that stops for good cannot look prompt.",
+    ),
 )
-"""Table columns: (header, `aggregate` key, or None where the cell combines several keys)."""
+"""The table's columns, in order (the same in the printed table, ``table.txt`` and ``report.md``)."""
 
 
 def summarise(records: Sequence[EpisodeRecord]) -> dict[str, Any]:
-    """Per policy, per (scenario, policy) and overall aggregates (`crossing_eval.statistics.aggregate`).
+    """Per policy and per (scenario, policy) aggregates, and the world-health figures.
 
-    Each aggregate also holds the censored delay (`crossing_eval.statistics.censored_delay`): episodes
-    that never pass count at their scenario's duration.
+    Each aggregate (`crossing_eval.statistics.aggregate`) also holds the censored delay
+    (`crossing_eval.statistics.censored_delay`): episodes that never pass count at their scenario's
+    duration. ``world_health`` holds the background-contact figures over every episode of the run.
     """
     horizons = {s: load_scenario(s).duration for s in {r.task.scenario for r in records}}
     results = [EpisodeResult.from_dict(r.result) for r in records]
@@ -41,11 +127,11 @@ def summarise(records: Sequence[EpisodeRecord]) -> dict[str, Any]:
         by_pair.setdefault(f"{rec.task.scenario}/{rec.task.policy}", []).append(
             (res, horizons[rec.task.scenario])
         )
-    every = [(res, horizons[rec.task.scenario]) for rec, res in zip(records, results, strict=True)]
+    every = aggregate(results)
     return {
         "per_policy": {k: _aggregate(v) for k, v in by_policy.items()},
         "per_scenario_policy": {k: _aggregate(v) for k, v in sorted(by_pair.items())},
-        "overall": _aggregate(every),
+        "world_health": {k: v for k, v in every.items() if k == "episodes" or k.startswith("background_")},
     }
 
 
@@ -70,29 +156,42 @@ def _fmt(x: Any, digits: int = 2) -> str:
     return str(x)
 
 
+def _close(agg: dict[str, Any]) -> bool:
+    """Some episode passed a pedestrian closer than the clearance."""
+    sep = agg["min_separation_min"]
+    return sep is not None and not math.isnan(sep) and sep < _CFG.clearance
+
+
 def _row(name: str, agg: dict[str, Any]) -> list[str]:
     """The cells of one table row, in `TABLE_COLUMNS` order."""
     lo, hi = agg["collision_ci95"]
     comp = agg["yield_compliance"]
+    close = _close(agg)
+    mark = CLOSE_MARK if close else ""
+    sep = f"{_fmt(agg['min_separation_min'])}{mark}/{_fmt(agg['min_separation_p50'])}"
+    # A close pass marks the TTC too: "-" (never on a collision course) or a long TTC is no all-clear.
+    ttc = f"{_fmt(agg['min_ttc_p5'])}/{_fmt(agg['min_ttc_p50'])}{mark}"
     return [
         name,
         str(agg["episodes"]),
         f"{agg['collision_rate']:.3f} [{lo:.3f}, {hi:.3f}]",
-        f"{_fmt(agg['min_ttc_p5'])}/{_fmt(agg['min_ttc_p50'])}",
+        sep,
+        ttc,
         _fmt(agg["pet_pedestrian_first_p5"]),
         _fmt(agg["drac_crossing_mean"]),
         _fmt(agg["hard_brakes_per_episode"]),
         f"{_fmt(comp, 3)} ({agg['yield_obligations']})",
+        _fmt(agg["max_speed_over_limit_max"]),
+        _fmt(agg["time_over_speed_limit_mean"]),
         _fmt(agg["pass_rate"]),
         _fmt(agg["censored_mean_delay"]),
     ]
 
 
 def format_table(summary: dict[str, Any], policies: Sequence[str]) -> str:
-    """Fixed-width text table: one row per policy plus 'overall', then the world-health line."""
-    rows = [[c for c, _ in TABLE_COLUMNS]]
+    """Fixed-width text table, one row per policy (all scenarios of the run), then two notes."""
+    rows = [[c.header for c in TABLE_COLUMNS]]
     entries = [(p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]]
-    entries.append(("overall", summary["overall"]))
     rows.extend(_row(name, agg) for name, agg in entries)
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     lines = []
@@ -105,13 +204,18 @@ def format_table(summary: dict[str, Any], policies: Sequence[str]) -> str:
         )
         if i == 0:
             lines.append("  ".join("-" * w for w in widths))
+    lines.append(
+        f"'{CLOSE_MARK}' = an episode passed a pedestrian closer than {_CFG.clearance:g} m; '-' = undefined;"
+        " delay: episodes that never pass count at the scenario's duration; every column is defined in"
+        " report.md."
+    )
     lines.append(format_world_health(summary))
     return "\n".join(lines)
 
 
 def format_world_health(summary: dict[str, Any]) -> str:
     """One line on the world around the ego: background car–pedestrian contacts (the ego is not involved)."""
-    agg = summary["overall"]
+    agg = summary["world_health"]
     lo, hi = agg["background_collision_ci95"]
     return (
         f"world health: {agg['background_collisions']} background car-pedestrian contact(s)"

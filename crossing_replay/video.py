@@ -1,7 +1,9 @@
 """``crossing-replay video``: an episode rendered frame by frame to MP4 (H.264) or GIF.
 
 Frames come from the env's top-down renderer (`crossing_env.render`), with the predictor wrappers'
-paths and intentions drawn when they are on. MP4 is written by imageio's ffmpeg plugin (the
+paths and intentions drawn when they are on, the ego marked, a caption (scenario, policy, seed, time) and a
+marker on a collision; the last frame is held for `HOLD_SECONDS`, so the end (often the collision) can be
+seen. MP4 is written by imageio's ffmpeg plugin (the
 ``imageio-ffmpeg`` wheel bundles an ffmpeg binary; the ``video`` extra installs it), GIF by Pillow.
 The file is written beside the target and renamed, so a failed run leaves nothing half-written.
 """
@@ -22,6 +24,8 @@ from crossing_replay.errors import VIDEO_HEADS, ReplayError, check_output
 
 FORMATS = (".mp4", ".gif")
 """Video formats by file suffix."""
+HOLD_SECONDS = 1.0
+"""The last frame is repeated for this long at the end of a video."""
 
 
 @dataclass(frozen=True)
@@ -31,7 +35,7 @@ class VideoSummary:
     out: Path
     """The file written."""
     frames: int
-    """Number of frames in it."""
+    """Number of frames of the episode (the reset and every step; without the held copies of the last)."""
 
 
 def _writer_check(out: Path) -> None:
@@ -49,15 +53,23 @@ def _writer_check(out: Path) -> None:
             ) from None
 
 
-def write_video(frames: list[np.ndarray], out: str | os.PathLike[str], fps: int = 10) -> Path:
-    """Write uint8 (H, W, 3) frames as MP4 or GIF (by suffix), atomically."""
+def hold_frames(fps: int, seconds: float = HOLD_SECONDS) -> int:
+    """Extra copies of the last frame that hold it for `seconds` at `fps` (at least one)."""
+    return max(1, round(seconds * fps))
+
+
+def write_video(
+    frames: list[np.ndarray], out: str | os.PathLike[str], fps: int = 10, hold: float = HOLD_SECONDS
+) -> Path:
+    """Write uint8 (H, W, 3) frames as MP4 or GIF (by suffix), atomically; the last one held `hold` s."""
     import imageio.v3 as iio
 
     dst = Path(out)
     _writer_check(dst)
     if not frames:
         raise ReplayError("no frames to write")
-    stack = np.stack(frames)
+    extra = hold_frames(fps, hold) if hold > 0 else 0
+    stack = np.stack([*frames, *([frames[-1]] * extra)])
     with atomic_output(dst, suffix=dst.suffix) as tmp:
         if dst.suffix.lower() == ".gif":
             iio.imwrite(tmp, stack, extension=".gif", duration=1000.0 / fps, loop=0)
@@ -104,7 +116,7 @@ def record_video(
     env, _, _ = env_for_policy(scenario, policy, predictor, intention, replaying=actions is not None)
     try:
         base = env.unwrapped
-        renderer = TopDownRenderer(base.config)
+        renderer = TopDownRenderer(base.config, caption=f"policy {policy}   seed {seed}")
         pol = None if actions is not None else make_policy(policy, seed, env)
         frames = [
             renderer.draw(base.world, frame.observation)

@@ -17,6 +17,7 @@ from crossing_common.cadence import HISTORY_INTERVAL
 
 CrossingKind = Literal["zebra", "signalised", "none"]
 PhaseDistribution = Literal["classical", "uniform", "normal"]
+ConflictSide = Literal["near", "far", "either"]
 
 
 @dataclass(frozen=True)
@@ -127,6 +128,10 @@ class TrafficConfig:
     """Standard deviation of drivers' desired speed around the speed limit, m/s."""
     yield_probability: float = 0.5
     """Probability that a background driver yields to pedestrians at a zebra (literature: 16–75%)."""
+    offer_timeout: float = 3.0
+    """Seconds a yielding driver stands at the stop line for pedestrians who keep waiting before it takes the
+    offer as declined and drives on (as the ego's `yielding` policy and `MetricsConfig.offer_timeout` do);
+    someone who starts waiting later gets a new offer."""
     max_vehicles: int = 16
     """Capacity of the vehicle pool, ego excluded."""
     idm: IDMConfig = field(default_factory=IDMConfig)
@@ -282,6 +287,43 @@ class BystanderConfig:
 
 
 @dataclass(frozen=True)
+class ConflictConfig:
+    """A key pedestrian timed to the ego's arrival, as in Euro NCAP's AEB pedestrian tests (CPNA, CPFA, CPNC).
+
+    Per episode the env draws, from its seeded generator, one value from each range (`[lo, hi]`, uniform;
+    `lo == hi` fixes it). The pedestrian stands on the sidewalk at the conflict point (hidden behind the
+    occluder if there is one) and steps off when the ego's time to arrive there, at its current speed, falls
+    to the drawn `time_to_arrival`. Its start is set back from the ego's path so that, walking at the drawn
+    speed, it would meet the ego's front at `impact_offset` of the car's width if the car held its speed: a
+    car that never brakes hits it. The set-back is limited to the walkway; where the walkway is too narrow
+    (or too wide) for the drawn time, the time becomes what the walkway allows, the collision course being
+    kept. A car that stands still within 60 m of the point for 1 s also releases the pedestrian (someone
+    given the way takes it).
+    """
+
+    side: ConflictSide = "near"
+    """Sidewalk the pedestrian steps off from: 'near' (the ego's kerb, south), 'far' (across the road) or
+    'either' (drawn per episode, even odds)."""
+    x_offset: tuple[float, ...] = (0.0, 0.0)
+    """Range of the conflict point along the road relative to `crossing.position` (m; + is further on)."""
+    ego_speed: tuple[float, ...] = (8.3, 13.9)
+    """Range of the ego's initial speed (m/s; replaces `ego.speed`), 30-50 km/h by default."""
+    pedestrian_speed: tuple[float, ...] = (1.1, 1.7)
+    """Range of the pedestrian's walking speed (m/s; Euro NCAP: 1.39 walking, 2.22 running)."""
+    impact_offset: tuple[float, ...] = (0.25, 0.75)
+    """Range of the impact point as a fraction of the ego's width, 0 = its right (south) edge, 1 its left."""
+    time_to_arrival: tuple[float, ...] = (2.0, 3.5)
+    """Range of the ego's time to arrive at the conflict point when the pedestrian steps off (s)."""
+    occluder_gap: tuple[float, ...] = ()
+    """Range of the gap (m) between the pedestrian's path and the front of the first parked vehicle in
+    `traffic.spawns`, which is moved there (Euro NCAP CPNCO: 1 m); empty: the spawn stays where it is."""
+    distracted: bool = False
+    """The pedestrian looks at a phone (walks 20 % slower than drawn, as distracted pedestrians do)."""
+    radius: float | None = None
+    """Body radius (m; a child about 0.2); None uses the population radius."""
+
+
+@dataclass(frozen=True)
 class PedestrianConfig:
     """Pedestrian population: spawns, speeds, body size and behaviour."""
 
@@ -337,6 +379,8 @@ class ScenarioConfig:
     """Episode time limit in seconds."""
     night: bool = False
     """Night-time: the ego sees pedestrians at half the perception range, and pedestrians walk 10% slower."""
+    conflict: ConflictConfig | None = None
+    """A key pedestrian timed to the ego's arrival (`[conflict]`); None: no timed conflict."""
 
 
 @dataclass(frozen=True)

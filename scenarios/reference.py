@@ -16,7 +16,7 @@ from collections.abc import Sequence
 
 from crossing_common.files import write_text_atomic
 from scenarios import config as config_module
-from scenarios.validation import VALUE_RULES
+from scenarios.ranges import VALUE_RULES
 
 TOP_LEVEL = ("ScenarioConfig", "EnvConfig")
 """Where the reference starts: the scenario file's tables, then the env's config."""

@@ -44,9 +44,7 @@ LAYOUT = "crossing_env/observation.py"
 """The module that names the keys and columns."""
 WRITERS = {LAYOUT}
 """Modules that define the layout (the builder fills the arrays by name, but it also defines the keys)."""
-PENDING = {
-    "crossing_env/render.py",
-}
+PENDING: set[str] = set()
 """Readers owned elsewhere that still index columns by number (convert, then remove them from here)."""
 
 

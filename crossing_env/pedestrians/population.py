@@ -28,6 +28,7 @@ from crossing_env.pedestrians.transitions import (
     INACTIVE,
     KERB_STANDOFF,
     TURNS_BACK,
+    WAITING,
     anyone_at_zebra,
     begin_transitions,
     detour,
@@ -38,7 +39,7 @@ from crossing_env.pedestrians.transitions import (
 )
 from crossing_env.road import RoadGeometry
 from crossing_env.types import BehaviourEvent, FloatArray, IntArray
-from scenarios.config import PedestrianConfig, ScenarioConfig
+from scenarios.config import PedestrianConfig, PedestrianSpawn, ScenarioConfig
 
 
 @dataclass(frozen=True)
@@ -114,12 +115,14 @@ class PedestrianPopulation(PedestrianSpawning):
         self.force_intensity = np.full(n, self.config.social_force.ped_intensity)
         self.turning_back = np.zeros(n, dtype=bool)  # walking back to the start kerb after turning back
         self.accepted_gap = np.full(n, np.nan)  # gap (s) at the last start of a crossing (evaluation only)
+        self.held = np.zeros(n, dtype=bool)  # a timed conflict's pedestrian standing until released
         self.history = np.zeros((n, history_length, 2))
         self.next_id = 0
         self.next_group = 1_000_000  # random groups get ids far from scenario-given ones
         self.step_count = 0
         self.time = 0.0
         self.events: list[BehaviourEvent] = []
+        self._early_events: list[BehaviourEvent] = []  # logged before `step` (a release), kept for it
         self._pending = sorted(self.config.spawns, key=lambda s: s.time)
         self._kerb_y = (geometry.kerb_south - KERB_STANDOFF, geometry.kerb_north + KERB_STANDOFF)
         self._kerb_lines = (float(geometry.kerb_south), float(geometry.kerb_north))
@@ -161,7 +164,7 @@ class PedestrianPopulation(PedestrianSpawning):
     def step(self, time: float, cars: CarSnapshot, pedestrian_green: bool | None) -> None:
         """Advance decisions and desired velocities by one step (physics integrates positions)."""
         self.time = time
-        self.events = []
+        self.events, self._early_events = self._early_events, []
         while self._pending and self._pending[0].time <= time + 1e-9:
             self.spawn(self._pending.pop(0))
         if not self._bystanders_placed:
@@ -195,7 +198,9 @@ class PedestrianPopulation(PedestrianSpawning):
             self.hesitate_at,
             self.turn_back_at,
         )
-        # WAITING: decide.
+        # WAITING: decide (a timed conflict's held pedestrian waits for its release, not for a gap).
+        if waiting.size and self.held.any():
+            waiting = waiting[~self.held[waiting]]
         if waiting.size:
             red, gap, seen, critical_gap, phase, waited, red_violator, safe = waiting_context(
                 waiting,
@@ -290,6 +295,33 @@ class PedestrianPopulation(PedestrianSpawning):
         if self.runs[i]:
             self.desired_speed[i] = min(2.0 * self.base_speed[i], 3.5)
             self._log(i, "run")
+
+    def spawn_held(self, spawn: PedestrianSpawn, start_y: float) -> int | None:
+        """Place a timed conflict's pedestrian standing at (`spawn.x`, `start_y`) until `release_held`."""
+        i = self.spawn(spawn)
+        if i is None:
+            return None
+        self.position[i] = (spawn.x, start_y)
+        self.history[i] = self.position[i]
+        self.waypoint[i] = self.position[i]
+        self.state[i] = WAITING
+        self.held[i] = True
+        self.hesitate_at[i] = np.inf  # it keeps its course: the timing is the scenario's
+        self.turn_back_at[i] = np.inf
+        return i
+
+    def release_held(self, i: int, red: bool, time: float) -> None:
+        """Step a held pedestrian off now (logged with the coming step's events)."""
+        self.held[i] = False
+        self.time = time
+        events, self.events = self.events, []
+        self._start_crossing(i, red)
+        self._early_events, self.events = self.events, events
+
+    def waiting_at_zebra(self) -> np.ndarray:
+        """(n,) waiting to cross at the zebra (within its width of the centre line; jaywalkers aside)."""
+        position, width = self._zebra_span
+        return (self.state == WAITING) & (np.abs(self.crossing_x - position) < width) & ~self.jaywalker
 
     def anyone_at_zebra(self, on_crossing: np.ndarray) -> bool:
         """Whether anyone waits by the crossing (jaywalkers aside) or is on it (`on_crossing`)."""

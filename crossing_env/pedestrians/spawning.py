@@ -108,6 +108,7 @@ class PedestrianSpawning:
         self.force_intensity[i] = self.config.social_force.ped_intensity
         self.turning_back[i] = False
         self.accepted_gap[i] = np.nan
+        self.held[i] = False
         if not spawn.crosses:
             cx = spawn.x
             self.jaywalker[i] = False

@@ -18,7 +18,7 @@ from crossing_env.safety.geometry import (
     time_to_collision,
 )
 from crossing_env.safety.results import DEFAULT_METRICS, EpisodeResult, MetricsConfig, json_safe
-from crossing_env.safety.step import SafetyMonitor, StepSafety
+from crossing_env.safety.step import COST_TERMS, SafetyMonitor, StepSafety, step_costs
 from crossing_env.safety.yielding import (
     YieldTracker,
     ego_in_conflict_area,
@@ -28,6 +28,7 @@ from crossing_env.safety.yielding import (
 )
 
 __all__ = [
+    "COST_TERMS",
     "DEFAULT_METRICS",
     "EpisodeMetrics",
     "EpisodeResult",
@@ -47,5 +48,6 @@ __all__ = [
     "min_pedestrian_ttc",
     "obligation_candidates",
     "rect_occupancy_interval",
+    "step_costs",
     "time_to_collision",
 ]

@@ -82,6 +82,8 @@ class EpisodeMetrics:
       not carry.
     - Delay: from t = 0 at `EgoConfig.x` until the ego centre passes `conflict_area.x_max + delay_margin`
       (linear interpolation between steps), minus that distance at the speed limit.
+    - Speeding: each step's ego speed along the road minus `RoadConfig.speed_limit` (as the reward's
+      ``speeding`` term); the largest positive excess and the time (steps × dt) with a positive one.
     - Pedestrian waiting time: first step seen `WAITING` → first step seen `CROSSING`; 0 for pedestrians
       that step off straight from `APPROACHING`.
     """
@@ -141,6 +143,9 @@ class EpisodeMetrics:
         self._was_hard = False
         self._comfort_steps = 0
         self._max_decel = 0.0
+        # speeding
+        self._max_over = 0.0
+        self._over_time = 0.0
         # efficiency
         self._target_x = math.nan
         self._reach_time = math.nan
@@ -194,6 +199,13 @@ class EpisodeMetrics:
         self._comfort_steps += acc <= -cfg.comfort_deceleration
         if -acc > self._max_decel:
             self._max_decel = -acc
+
+        # Speeding (the reward's definition: speed along the road above the limit).
+        over = evx - self.scenario.road.speed_limit
+        if over > 0.0:
+            self._over_time += self.dt
+            if over > self._max_over:
+                self._max_over = over
 
         # Efficiency: interpolated crossing times of the delay target, the pass trigger and the clearing.
         t0 = self._last_t
@@ -448,6 +460,8 @@ class EpisodeMetrics:
             censored_waits=int(np.count_nonzero(~np.isnan(self._peds.wait_start))),
             stops=stops.stops,
             unneeded_stops=unneeded,
+            max_speed_over_limit=self._max_over,
+            time_over_speed_limit=self._over_time,
         )
 
 

@@ -73,7 +73,7 @@ DEFAULT_METRICS = MetricsConfig()
 config, so checking that both use the same thresholds is an identity test)."""
 
 # Fields added later, with defaults: older logs without them still load.
-_OPTIONAL_FIELDS = frozenset({"stops", "unneeded_stops"})
+_OPTIONAL_FIELDS = frozenset({"stops", "unneeded_stops", "max_speed_over_limit", "time_over_speed_limit"})
 
 # Fields whose "missing" value means "never happened" (inf) rather than "undefined" (nan).
 _INF_FIELDS = frozenset(
@@ -176,6 +176,10 @@ class EpisodeResult:
     """Stops near the crossing with a pedestrian at the kerb as a possible reason (`safety.stops`)."""
     unneeded_stops: int = 0
     """Of those, stops for pedestrians who then did not step onto the road in front of the ego."""
+    max_speed_over_limit: float = 0.0
+    """Largest ego speed above the scenario's speed limit (`RoadConfig.speed_limit`); 0 if never above."""
+    time_over_speed_limit: float = 0.0
+    """Time the ego drove faster than the speed limit (steps above it × dt)."""
 
     @property
     def yield_compliance(self) -> float:

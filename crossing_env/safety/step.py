@@ -27,7 +27,10 @@ from crossing_env.safety.yielding import (
 )
 from crossing_env.types import GroundTruth
 
-__all__ = ["SafetyMonitor", "StepSafety", "min_pedestrian_separation"]
+__all__ = ["COST_TERMS", "SafetyMonitor", "StepSafety", "min_pedestrian_separation", "step_costs"]
+
+COST_TERMS: tuple[str, ...] = ("collision", "failing_to_yield", "near_miss")
+"""Keys of `step_costs` (and of the env's ``info["costs"]``), in order; ``info["cost"]`` is their sum."""
 
 
 def min_pedestrian_separation(gt: GroundTruth, half: np.ndarray) -> float:
@@ -122,3 +125,23 @@ class SafetyMonitor:
         )
         gt.attach_safety(safety)
         return safety
+
+
+def step_costs(gt: GroundTruth, safety: StepSafety) -> dict[str, float]:
+    """The step's unweighted safety indicators, for constrained RL (``info["cost"]`` is their sum).
+
+    - ``collision``: 1.0 if an ego collision began in this step (``gt.collisions``), else 0.0;
+    - ``failing_to_yield``: the number of yield obligations violated in this step
+      (`StepSafety.yield_violations`, the steps `EpisodeResult.yield_violations` counts);
+    - ``near_miss``: 1.0 if the minimum ego–pedestrian TTC is below `MetricsConfig.serious_ttc`, the steps
+      `EpisodeResult.serious_conflict_time` adds up (÷ dt), else 0.0.
+
+    The same quantities as the reward's ``collision``, ``failing_to_yield`` and ``near_miss`` terms, without
+    their weights (and without the near miss's factor dt), so every term is 0 or a small count, never
+    negative.
+    """
+    return {
+        "collision": 1.0 if gt.collisions else 0.0,
+        "failing_to_yield": float(safety.yield_violations),
+        "near_miss": 1.0 if safety.min_ttc < safety.config.serious_ttc else 0.0,
+    }

@@ -7,7 +7,7 @@ import pytest
 
 from crossing_env.pedestrians.social_force import model_parameters, social_force_acceleration, walk_step
 from crossing_env.physics import PhysicsWorld
-from crossing_env.traffic import idm_acceleration
+from crossing_env.traffic_kernels import idm_acceleration
 from scenarios.config import IDMConfig, SocialForceConfig
 
 NO_BOXES = np.zeros((0, 4))

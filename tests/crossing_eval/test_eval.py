@@ -54,8 +54,9 @@ def test_cli_writes_table_json_csv_png_and_logs(
     proc, out = one_worker
     assert proc.returncode == 0, proc.stderr
     assert "collision rate [95% CI]" in proc.stdout
-    for name in ("yielding", "constant_speed", "overall"):
+    for name in ("yielding", "constant_speed"):
         assert name in proc.stdout
+    assert "overall" not in proc.stdout  # no row pools different policies
 
     doc = json.loads((out / "results.json").read_text())
     assert doc["settings"]["episodes"] == 2
@@ -83,7 +84,10 @@ def test_cli_writes_table_json_csv_png_and_logs(
     assert {r["policy"] for r in rows} == {"yielding", "constant_speed"}
     with (out / "summary.csv").open() as fh:
         summary_rows = list(csv.DictReader(fh))
-    assert [r["policy"] for r in summary_rows] == ["yielding", "constant_speed", "overall"]
+    assert [r["policy"] for r in summary_rows] == ["yielding", "constant_speed"]
+    assert "overall" not in doc["summary"]
+    report = (out / "report.md").read_text()
+    assert "## Definitions" in report and "overall" not in report
 
     for png in ("safety_vs_efficiency.png", "min_ttc.png"):
         data = (out / png).read_bytes()

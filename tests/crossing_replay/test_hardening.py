@@ -16,6 +16,7 @@ from crossing_replay.episode_log import save_episode_log
 from crossing_replay.errors import ReplayError
 from crossing_replay.recorder import record_episode
 from crossing_replay.scene import _load_predictor
+from crossing_replay.video import hold_frames
 from crossing_replay.viewer import verify_recording
 from tests.crossing_replay.test_replay import read_rrd
 
@@ -134,7 +135,19 @@ def test_video_writes_every_frame(tmp_path: Path, suffix: str):
     argv = ["video", "--scenario", "busy_zebra", "--policy", "constant_speed", "--steps", "7"]
     assert main([*argv, "--predictor", "cvm", "--intention", "none", "--out", str(out)]) == 0
     frames = iio.imread(out, index=None)
-    assert frames.shape[0] == 8 and frames.shape[-1] == 3
+    held = hold_frames(10)  # the last frame is held for a second at the default 10 fps
+    assert frames.shape[-1] == 3
+    if suffix == ".gif":  # Pillow merges repeated frames into a longer last one
+        from PIL import Image
+
+        with Image.open(out) as gif:
+            gif.seek(7)
+            assert frames.shape[0] == 8 and gif.info["duration"] == 100 * (1 + held)
+    else:
+        assert frames.shape[0] == 8 + held
+        last = frames[7].astype(np.int16)
+        assert np.abs(frames[-1] - last).mean() < 1.0  # the held copy (MP4 is lossy: nearly equal)
+        assert np.abs(frames[-1] - last).mean() < np.abs(frames[6] - last).mean()  # the episode moved
     assert [p.name for p in tmp_path.iterdir()] == [out.name]
 
 

@@ -114,21 +114,22 @@ def test_situations_have_their_defining_features() -> None:
     groups = [p.group for p in busy.pedestrians.spawns if p.group >= 0]
     assert len(set(groups)) >= 2 and busy.pedestrians.group_probability >= 0.3
     assert busy.pedestrians.spawn_rate > ScenarioConfig().pedestrians.spawn_rate
+    assert busy.traffic.offer_timeout > 0.0 and busy.pedestrians.behaviour.decision_model == "qlb"
 
     red = load_scenario("signalised_red_light")
     assert red.crossing.kind == "signalised"
     assert red.pedestrians.behaviour.red_light_rate > ScenarioConfig().pedestrians.behaviour.red_light_rate
     signal = red.crossing.signal
     # The ego has green (pedestrians red) when it arrives.
-    t_arrive = (red.crossing.position - red.ego.x) / red.ego.speed
+    t_arrive = (red.crossing.position - red.ego.x) / min(red.conflict.ego_speed)
     phase = (signal.offset + t_arrive) % (signal.pedestrian_green + signal.pedestrian_red)
     assert phase >= signal.pedestrian_green
 
+    # The jaywalker, the red-light runner, the hidden pedestrian and the phone user are timed to the ego.
     jay = load_scenario("midblock_jaywalker")
-    walker = jay.pedestrians.spawns[0]
-    assert walker.crossing_x is not None
-    assert jay.crossing.kind == "none" or abs(walker.crossing_x - jay.crossing.position) > 50
-    assert jay.ego.x < walker.crossing_x
+    assert jay.crossing.kind == "none" and jay.conflict is not None and jay.conflict.side == "far"
+    assert jay.ego.x < jay.crossing.position + min(jay.conflict.x_offset)
+    assert red.conflict is not None
 
     occ = load_scenario("occluded_parked_car")
     parked = [s for s in occ.traffic.spawns if s.parked]
@@ -136,10 +137,11 @@ def test_situations_have_their_defining_features() -> None:
     nearest = max(parked, key=lambda s: s.x)
     assert occ.ego.x < nearest.x < occ.crossing.position
     assert occ.crossing.position - nearest.x < 15.0
-    hidden = occ.pedestrians.spawns[0]
-    # The pedestrian appears right in front of the van, on its kerb side, and does not look.
-    assert 0.0 < hidden.x - (nearest.x + occ.traffic.length / 2) < 2.0 and hidden.side == "south"
-    assert hidden.critical_gap == 0.0
+    hidden = occ.conflict
+    # The pedestrian stands right in front of the van (moved per seed), on its kerb side, on the zebra.
+    assert hidden is not None and hidden.side == "near" and 0.0 < min(hidden.occluder_gap) < 2.0
+    lo = occ.crossing.position + min(hidden.x_offset)
+    assert occ.crossing.position - occ.crossing.width / 2 < lo
 
     kids = load_scenario("children_running")
     children = [p for p in kids.pedestrians.spawns if p.radius is not None and p.radius <= 0.22]
@@ -148,8 +150,8 @@ def test_situations_have_their_defining_features() -> None:
 
     night = load_scenario("night_distracted")
     assert night.night
-    slow = [p for p in night.pedestrians.spawns if p.distracted]
-    assert slow and all(p.desired_speed is not None and p.desired_speed < 1.35 for p in slow)
+    assert night.conflict is not None and night.conflict.distracted and night.conflict.side == "either"
+    assert max(night.conflict.pedestrian_speed) < 1.6
 
 
 def test_name_defaults_to_file_stem(tmp_path: Path) -> None:

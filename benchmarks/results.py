@@ -1,0 +1,261 @@
+"""The registry of results: every registered table is measured by a named command into a committed JSON and
+rendered from that JSON into the docs between markers, never typed by hand.
+
+    python -m benchmarks.results                      # list the entries and whether each is stale
+    python -m benchmarks.results default_table        # measure one entry (slow), write its JSON, render
+    python -m benchmarks.results --render             # re-render every table from its JSON (fast)
+    python -m benchmarks.results --check              # exit 1 if a rendered table differs from its JSON
+
+Each JSON records the commit it was measured on and a **behaviour fingerprint**: a hash of a small
+fixed-seed run through the same code path (the rollout of every built-in scenario with two policies). When
+the code's fingerprint no longer matches the JSON's, the table is rendered with a marker saying that it was
+measured on an older behaviour and must be regenerated: a stale table is never shown as current.
+Rendered blocks sit between ``<!-- results:NAME -->`` and ``<!-- /results:NAME -->`` in a markdown file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import re
+import subprocess
+import sys
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+REPO = Path(__file__).resolve().parents[1]
+RESULTS_DIR = REPO / "benchmarks" / "results"
+FINGERPRINT_POLICIES = ("yielding", "constant_speed")
+"""Policies of the behaviour fingerprint: one that yields (predictors on) and one that never brakes."""
+FINGERPRINT_STEPS = 60
+"""Steps per fingerprint episode: enough to pass spawning, decisions and the first conflicts."""
+
+
+def behaviour_fingerprint() -> str:
+    """Hash of the actions and scored results of a short fixed-seed rollout of every built-in scenario.
+
+    It runs through `rollout` (the path `crossing-eval` takes), so it changes whenever a scenario file, the
+    world, the predictors, a fingerprint policy or the metrics change what an episode gives.
+    """
+    from crossing_eval.tasks import episode_seed
+    from rollout import RolloutSpec, build, run_episode
+    from scenarios import list_scenarios
+
+    digest = hashlib.sha256()
+    for scenario in sorted(list_scenarios()):
+        for policy in FINGERPRINT_POLICIES:
+            run = build(RolloutSpec(scenario=scenario, policy=policy))
+            episode = run_episode(
+                run.env, episode_seed(2024, scenario, 0), policy=run.policy, max_steps=FINGERPRINT_STEPS
+            )
+            run.env.close()
+            digest.update(f"{scenario}/{policy}".encode())
+            digest.update(json.dumps(episode.actions).encode())
+            digest.update(json.dumps(episode.result, sort_keys=True, default=str).encode())
+    return digest.hexdigest()[:16]
+
+
+def source_commit() -> str:
+    """The checkout's commit (``-dirty`` when tracked files differ)."""
+    from crossing_eval.provenance import source_commit as commit
+
+    return commit()
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Entries
+# ---------------------------------------------------------------------------------------------------------
+
+
+def _measure_default_table() -> dict[str, Any]:
+    """`crossing-eval` with no arguments (2 workers): the printed table and the run's figures."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "run"
+        proc = subprocess.run(
+            [sys.executable, "-m", "crossing_eval.cli", "--out", str(out), "--no-progress", "--workers", "2"],
+            capture_output=True,
+            text=True,
+            check=False,
+        )
+        if proc.returncode != 0:
+            raise RuntimeError(f"crossing-eval failed ({proc.returncode}): {proc.stderr[-2000:]}")
+        table = (out / "table.txt").read_text(encoding="utf-8")
+        settings = json.loads((out / "results.json").read_text(encoding="utf-8"))["settings"]
+    episodes = len(settings["scenarios"]) * len(settings["policies"]) * settings["episodes"]
+    return {"command": "crossing-eval", "table": table, "episodes": episodes}
+
+
+def _render_default_table(data: dict[str, Any]) -> str:
+    return (
+        f"Measured with `{data['command']}` (no arguments, {data['episodes']} episodes, 2 workers) on commit"
+        f" `{data['commit'][:12]}`;"
+        " rendered from `benchmarks/results/default_table.json` by `python -m benchmarks.results`.\n\n"
+        f"```\n{data['table'].rstrip()}\n```"
+    )
+
+
+def _measure_discrimination() -> dict[str, Any]:
+    """`benchmarks/discrimination.py --seeds 45` (it writes its own JSON)."""
+    path = RESULTS_DIR / "discrimination.json"
+    subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "discrimination.py"), "--seeds", "45", "--no-progress"],
+        check=True,
+        cwd=REPO,
+    )
+    return json.loads(path.read_text(encoding="utf-8"))
+
+
+def _render_discrimination(data: dict[str, Any]) -> str:
+    from benchmarks.discrimination import render_body
+
+    return render_body(data)
+
+
+@dataclass(frozen=True)
+class Entry:
+    """One registered result: how it is measured, where its JSON lives, where it is rendered."""
+
+    name: str
+    """Registry name (the CLI argument)."""
+    tier: str
+    """'fast' (seconds) or 'slow' (minutes or more): what `--tier` selects."""
+    measure: Callable[[], dict[str, Any]]
+    """Runs the command and returns the JSON data (without commit and fingerprint, added here)."""
+    render: Callable[[dict[str, Any]], str]
+    """The markdown block from the JSON data."""
+    document: Path
+    """The markdown file that holds the block between the markers."""
+    behaviour: bool = True
+    """Whether the numbers depend on simulated behaviour (then the fingerprint decides staleness)."""
+
+    @property
+    def json_path(self) -> Path:
+        """The committed JSON."""
+        return RESULTS_DIR / f"{self.name}.json"
+
+
+ENTRIES: dict[str, Entry] = {
+    e.name: e
+    for e in (
+        Entry(
+            "default_table",
+            "slow",
+            _measure_default_table,
+            _render_default_table,
+            REPO / "docs" / "evaluation.md",
+        ),
+        Entry(
+            "discrimination",
+            "slow",
+            _measure_discrimination,
+            _render_discrimination,
+            REPO / "docs" / "scenario_discrimination.md",
+        ),
+    )
+}
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Rendering and staleness
+# ---------------------------------------------------------------------------------------------------------
+
+
+def _markers(name: str) -> tuple[str, str]:
+    return f"<!-- results:{name} -->", f"<!-- /results:{name} -->"
+
+
+def stale_note(data: dict[str, Any], fingerprint: str | None, name: str = "") -> str:
+    """The line rendered above a table whose behaviour fingerprint no longer matches the code's."""
+    if fingerprint is None or data.get("fingerprint") == fingerprint:
+        return ""
+    return (
+        f"> **Stale:** measured on commit `{str(data.get('commit', 'unknown'))[:12]}` (behaviour fingerprint"
+        f" `{data.get('fingerprint')}`); the code's behaviour has changed since (`{fingerprint}`)."
+        f" Regenerate with `python -m benchmarks.results {name or data.get('name', '')}`.\n\n"
+    )
+
+
+def rendered_block(entry: Entry, fingerprint: str | None) -> str:
+    """The block between the markers: the stale note (if any) and the entry's rendering of its JSON."""
+    data = json.loads(entry.json_path.read_text(encoding="utf-8"))
+    note = stale_note(data, fingerprint, entry.name) if entry.behaviour else ""
+    return note + entry.render(data)
+
+
+def committed_block(entry: Entry) -> str:
+    """What the document holds between the entry's markers now."""
+    begin, end = _markers(entry.name)
+    text = entry.document.read_text(encoding="utf-8")
+    match = re.search(re.escape(begin) + r"\n(.*?)\n" + re.escape(end), text, flags=re.S)
+    if match is None:
+        raise ValueError(f"{entry.document}: no {begin} ... {end} block")
+    return match.group(1)
+
+
+def write_block(entry: Entry, block: str) -> bool:
+    """Replace the entry's block in its document; returns whether the file changed."""
+    begin, end = _markers(entry.name)
+    text = entry.document.read_text(encoding="utf-8")
+    new = re.sub(
+        re.escape(begin) + r"\n.*?\n" + re.escape(end),
+        lambda _: f"{begin}\n{block}\n{end}",
+        text,
+        count=1,
+        flags=re.S,
+    )
+    if new == text:
+        return False
+    entry.document.write_text(new, encoding="utf-8")
+    return True
+
+
+def measure(entry: Entry, fingerprint: str) -> None:
+    """Run the entry's command and store its JSON with the commit and the fingerprint."""
+    data = entry.measure()
+    data.update(name=entry.name, commit=source_commit(), fingerprint=fingerprint)
+    entry.json_path.parent.mkdir(parents=True, exist_ok=True)
+    entry.json_path.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """List, measure, render or check the registered results."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("names", nargs="*", help=f"entries to measure: {', '.join(ENTRIES)}")
+    parser.add_argument("--tier", choices=("fast", "slow"), help="measure every entry of this tier")
+    parser.add_argument("--render", action="store_true", help="re-render every table from its JSON")
+    parser.add_argument("--check", action="store_true", help="exit 1 if a rendered table differs")
+    args = parser.parse_args(argv)
+    unknown = [n for n in args.names if n not in ENTRIES]
+    if unknown:
+        parser.error(f"unknown entries {unknown}; known: {', '.join(ENTRIES)}")
+    fingerprint = behaviour_fingerprint()
+    chosen = [ENTRIES[n] for n in args.names] + [e for e in ENTRIES.values() if e.tier == args.tier]
+    for entry in chosen:
+        print(f"measuring {entry.name} ...", file=sys.stderr)
+        measure(entry, fingerprint)
+    differs = []
+    for entry in ENTRIES.values():
+        block = rendered_block(entry, fingerprint)
+        if args.check:
+            if block != committed_block(entry):
+                differs.append(entry.name)
+        elif chosen or args.render:
+            write_block(entry, block)
+        data = json.loads(entry.json_path.read_text(encoding="utf-8"))
+        state = "stale" if stale_note(data, fingerprint) else "current"
+        print(
+            f"{entry.name:16s} {state:8s} measured on {str(data.get('commit'))[:12]}  {entry.document.name}"
+        )
+    print(f"behaviour fingerprint of this tree: {fingerprint}")
+    if differs:
+        print(f"rendered tables differ from their JSON: {', '.join(differs)}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
