@@ -107,7 +107,11 @@ def model_files(policies: Sequence[str], predictors: Sequence[str]) -> list[Path
             path = Path(spec[len("sb3:") :])
         if path is not None and path.is_file():
             files.append(path)
-            files += [p for p in sorted(path.parent.glob(path.stem + ".vecnormalize.*")) if p.is_file()]
+            from agents.sb3 import stats_path
+
+            stats = stats_path(path)  # the statistics file the policy loads, if any
+            if stats.is_file():
+                files.append(stats)
     return list(dict.fromkeys(files))
 
 

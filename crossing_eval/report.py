@@ -99,11 +99,13 @@ def report_markdown(
     """``report.md``: the settings, the per-policy table, one table per scenario, the column definitions."""
     header = [c.header for c in TABLE_COLUMNS]
     per_policy = [_row(p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]]
+    used = ", ".join(settings.get("predictors_used") or []) or "none"
     parts = [
         "# crossing-eval report",
         "",
         f"{settings.get('episodes')} episode(s) per scenario and policy, base seed {settings.get('seed')},"
-        f" predictor {settings.get('predictor')}, intention {settings.get('intention')}.",
+        f" predictor {settings.get('predictor')}, intention {settings.get('intention')} (for the policies"
+        f" that read predictions); wrappers that actually ran: {used}.",
         "One row per policy; no row pools different policies. The columns are defined at the end"
         " ('-' = undefined).",
         "",
