@@ -25,6 +25,7 @@ from gymnasium import spaces
 from numba import njit
 
 from crossing_common.cadence import HISTORY_INTERVAL
+from crossing_env.stable_sort import stable_argsort
 from crossing_env.types import CrossingObs, FloatArray
 from scenarios.config import ObservationConfig, ScenarioConfig
 
@@ -361,7 +362,7 @@ def _fill_pedestrian_slots(
             else:
                 visible_steps[p] = 0
                 seen_id[p] = -1
-    order = np.argsort(key, kind="mergesort")  # stable: ties keep pool order
+    order = stable_argsort(key)  # stable: ties keep pool order
     last_sample = step_count - step_count % history_every
     last_slots[:] = -1
     for k in range(min(slots, capacity)):  # a pool smaller than the slots fills only its own number
@@ -421,7 +422,7 @@ def _fill_vehicle_slots(
             d = math.sqrt((x[i] - ex) ** 2 + (y[i] - ey) ** 2)
             if d <= perception_range:
                 dist[i] = d
-    order = np.argsort(dist, kind="mergesort")
+    order = stable_argsort(dist)
     for k in range(min(veh.shape[0], x.shape[0])):
         i = order[k]
         if not np.isfinite(dist[i]):

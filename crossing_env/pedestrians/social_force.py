@@ -26,6 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
+from crossing_env.stable_sort import stable_argsort
 from crossing_env.types import BoolArray, FloatArray
 from scenarios.config import SocialForceConfig
 
@@ -163,7 +164,7 @@ def _social_force_kernel(
     for k in range(n):
         xs[k] = pos[rows[k], 0]
         r_max = max(r_max, radii[rows[k]])
-    order = np.argsort(xs, kind="mergesort")
+    order = stable_argsort(xs)
     rank = np.empty(n, np.int64)
     for k in range(n):
         rank[order[k]] = k
