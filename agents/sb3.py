@@ -203,6 +203,13 @@ def _algorithm_and_custom_objects(path: Path) -> tuple[Any, dict[str, Any]]:
         if policy_name in classes:
             custom["policy_class"] = classes[policy_name]
             custom["lr_schedule"] = _constant
+            if isinstance(data.get("policy_kwargs"), dict) and ":serialized:" not in data["policy_kwargs"]:
+                # Acting needs no optimizer; building torch's Adam imports torch._dynamo (about 2 s).
+                custom["policy_kwargs"] = {
+                    **data["policy_kwargs"],
+                    "optimizer_class": InferenceOnlyOptimizer,
+                    "optimizer_kwargs": {},
+                }
             for key in ("clip_range", "clip_range_vf"):
                 if key in custom:
                     custom[key] = 0.2 if key == "clip_range" else None
@@ -215,6 +222,32 @@ def _algorithm_and_custom_objects(path: Path) -> tuple[Any, dict[str, Any]]:
 
 def _constant(_: float) -> float:
     return 0.0
+
+
+class InferenceOnlyOptimizer:
+    """Stands in for a loaded model's training optimizer: `SB3Policy` only acts, it never trains.
+
+    Loading keeps the file's optimizer state as is (`state_dict` returns it), so nothing in the model is
+    lost; `step` refuses. The predicted actions do not depend on the optimizer.
+    """
+
+    def __init__(self, params: Any, lr: float = 0.0, **kwargs: Any) -> None:
+        self._state: dict[str, Any] = {}
+
+    def load_state_dict(self, state_dict: dict[str, Any], strict: bool = True) -> None:
+        """Keep the saved optimizer state (never used to act)."""
+        self._state = state_dict
+
+    def state_dict(self) -> dict[str, Any]:
+        """The state loaded from the file."""
+        return self._state
+
+    def zero_grad(self, set_to_none: bool = True) -> None:
+        """Nothing to clear."""
+
+    def step(self, closure: Any = None) -> None:
+        """Training is not supported on a policy loaded to act."""
+        raise RuntimeError("an SB3Policy model is loaded to act; load it with stable_baselines3 to train")
 
 
 def _load_model(path: Path) -> Any:

@@ -305,6 +305,41 @@ def _segment_hits_box(x0: float, y0: float, x1: float, y1: float, box: FloatArra
 
 
 @njit(cache=True, nogil=True)
+def _stable_argsort(values: FloatArray) -> np.ndarray:
+    """``np.argsort(values, kind="mergesort")`` (NaN last, ties in index order), exactly.
+
+    A plain bottom-up merge sort: numba's generic one costs about 3 s of compilation on an empty cache. A
+    stable sort's permutation is fixed by its order, so the indices are NumPy's. Kept in each module that
+    sorts (numba refreshes a cached kernel only when its own file changes).
+    """
+    n = values.shape[0]
+    order = np.empty(n, np.int64)
+    for i in range(n):
+        order[i] = i
+    spare = np.empty(n, np.int64)
+    width = 1
+    while width < n:
+        for lo in range(0, n, 2 * width):
+            mid, hi = min(lo + width, n), min(lo + 2 * width, n)
+            i, j = lo, mid
+            for k in range(lo, hi):
+                if j < hi and i < mid:
+                    a, b = values[order[j]], values[order[i]]
+                    take_right = a < b or (np.isnan(b) and not np.isnan(a))  # strictly before
+                else:
+                    take_right = j < hi
+                if take_right:
+                    spare[k] = order[j]
+                    j += 1
+                else:
+                    spare[k] = order[i]
+                    i += 1
+        order, spare = spare, order
+        width *= 2
+    return order
+
+
+@njit(cache=True, nogil=True)
 def _fill_pedestrian_slots(
     position: FloatArray,
     velocity: FloatArray,
@@ -361,7 +396,7 @@ def _fill_pedestrian_slots(
             else:
                 visible_steps[p] = 0
                 seen_id[p] = -1
-    order = np.argsort(key, kind="mergesort")  # stable: ties keep pool order
+    order = _stable_argsort(key)  # stable: ties keep pool order
     last_sample = step_count - step_count % history_every
     last_slots[:] = -1
     for k in range(min(slots, capacity)):  # a pool smaller than the slots fills only its own number
@@ -421,7 +456,7 @@ def _fill_vehicle_slots(
             d = math.sqrt((x[i] - ex) ** 2 + (y[i] - ey) ** 2)
             if d <= perception_range:
                 dist[i] = d
-    order = np.argsort(dist, kind="mergesort")
+    order = _stable_argsort(dist)
     for k in range(min(veh.shape[0], x.shape[0])):
         i = order[k]
         if not np.isfinite(dist[i]):

@@ -227,9 +227,16 @@ def _pack_bodies(
 @njit(cache=True, nogil=True)
 def _sync_flags(old: BoolArray, new: BoolArray) -> np.ndarray:
     """Slots where `new` differs from `old`; then `old` takes `new`'s values."""
-    changed = np.flatnonzero(old != new)
-    old[:] = new
-    return changed
+    # Plain loops: `np.flatnonzero(old != new)` and `old[:] = new` compile numba's broadcasting (with its
+    # error-message strings), several seconds on a fresh install, for two arrays of the same length.
+    changed = np.empty(old.shape[0], np.int64)
+    n = 0
+    for i in range(old.shape[0]):
+        if old[i] != new[i]:
+            changed[n] = i
+            n += 1
+            old[i] = new[i]
+    return changed[:n]
 
 
 @njit(cache=True, nogil=True)

@@ -35,11 +35,12 @@ from crossing_eval.runners import (
     RayConnectionError,
     RunInterrupted,
     default_workers,
+    pool_pays_off,
     run_tasks,
 )
 from crossing_eval.summary import format_table, summarise
-from crossing_eval.tasks import EpisodeRecord, EpisodeTask, make_tasks
-from rollout import build_policy, make_env
+from crossing_eval.tasks import EpisodeRecord, EpisodeTask, cached_env, make_tasks
+from rollout import build_policy
 from rollout.wrappers import DEFAULT_INTENTION, DEFAULT_PREDICTOR, WrapperError, intention_names
 from scenarios import ScenarioError, list_scenarios, load_scenario
 
@@ -304,19 +305,17 @@ def _preflight(args: argparse.Namespace, tasks: Sequence[EpisodeTask]) -> None:
     A predictor, a policy plug-in or a model file that cannot be loaded then stops the run with one line
     (exit 2) before the first episode, instead of failing in every worker.
     """
+    # The envs are kept in this process's cache (`crossing_eval.tasks.cached_env`): a run small enough to
+    # stay in this process (see `in_process`) starts its first episode with them, models already loaded.
     scenario = args.scenarios[0]
     for intention, predictor in sorted({(t.intention, t.predictor) for t in tasks}):
-        env, _ = make_env(scenario, intention=intention, predictor=predictor)
-        env.close()
-    env, _ = make_env(scenario)
-    try:
-        for policy in args.policies:
-            try:
-                build_policy(policy, env)
-            except (ValueError, TypeError, OSError) as exc:
-                raise type(exc)(f"policy {policy!r} cannot be built: {exc}") from exc
-    finally:
-        env.close()
+        cached_env(scenario, intention=intention, predictor=predictor)
+    env, _ = cached_env(scenario)
+    for policy in args.policies:
+        try:
+            build_policy(policy, env)
+        except (ValueError, TypeError, OSError) as exc:
+            raise type(exc)(f"policy {policy!r} cannot be built: {exc}") from exc
 
 
 def _run(
@@ -327,17 +326,21 @@ def _run(
         prefix = f"crossing-eval --grid: {len(args.grid.combinations())} combination(s) x "
     else:
         prefix = "crossing-eval: "
+    workers = args.workers
+    where = f"{workers} worker(s)"
+    if args.backend == "local" and workers > 1 and not pool_pays_off(len(tasks), workers):
+        workers, where = 1, "in this process (fewer episodes than a worker pool's start-up is worth)"
     print(
         f"{prefix}{len(args.scenarios)} scenario(s) x"
         f" {len(args.policies)} policies x {args.episodes} episode(s) = {len(tasks)} episodes,"
-        f" {args.workers} worker(s), backend {args.backend}",
+        f" {where}, backend {args.backend}",
         file=sys.stderr,
     )
     t0 = time.perf_counter()
     try:
         records = run_tasks(
             tasks,
-            args.workers,
+            workers,
             args.backend,
             args.address,
             show_progress=not args.no_progress,

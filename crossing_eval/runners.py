@@ -76,6 +76,29 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+WORKER_START_SECONDS = 4.0
+"""Rough CPU cost of starting one worker process (torch, the env, the predictor models and PPO imported
+and loaded again) on a warm install; measured 3-5 s, far more when the CPUs are shared."""
+EPISODE_SECONDS = 0.5
+"""Rough mean CPU cost of one episode of the default table (0.07 s for constant speed, ~1 s for a yielding
+policy under the prediction wrappers)."""
+
+
+def pool_pays_off(total: int | None, workers: int) -> bool:
+    """Whether a pool of `workers` processes finishes `total` episodes sooner than this process alone.
+
+    The pool saves about ``total * EPISODE_SECONDS * (1 - 1/workers)`` and costs the start-up of its
+    workers; a small run (`crossing-eval --scenarios zebra_case1 --episodes 1`) therefore runs in this
+    process, with the envs and models the preflight already built. An unknown `total` uses the pool.
+    The records are the same either way.
+    """
+    if workers <= 1:
+        return False
+    if total is None:
+        return True
+    return total * EPISODE_SECONDS * (workers - 1) > WORKER_START_SECONDS * workers
+
+
 class RunInterrupted(Exception):
     """The run was stopped by SIGINT or SIGTERM; pending work was cancelled and the workers stopped.
 

@@ -99,14 +99,26 @@ def make_tasks(
 
 
 _ENV_CACHE: dict[tuple[str, str, str], tuple[Any, list[str]]] = {}
-"""Envs of this process by (scenario, predictor, intention): loading predictor models once per worker."""
+"""Envs of this process by (scenario, predictor, intention): loading predictor models once per worker.
+
+An env is reset with the task's seed before every episode, so the episodes it ran before (or a preflight
+that only built it) never show in a record."""
+
+
+def cached_env(scenario: str, intention: str = "none", predictor: str = "none") -> tuple[Any, list[str]]:
+    """This process's env for (scenario, wrappers) and the wrapper labels, built on first use.
+
+    Raises:
+        rollout.WrapperError: a wrapper that cannot be built (nothing is cached then).
+    """
+    key = (scenario, predictor, intention)
+    if key not in _ENV_CACHE:
+        _ENV_CACHE[key] = make_env(scenario, intention=intention, predictor=predictor)
+    return _ENV_CACHE[key]
 
 
 def _cached_env(task: EpisodeTask) -> tuple[Any, list[str]]:
-    key = (task.scenario, task.predictor, task.intention)
-    if key not in _ENV_CACHE:
-        _ENV_CACHE[key] = make_env(task.scenario, intention=task.intention, predictor=task.predictor)
-    return _ENV_CACHE[key]
+    return cached_env(task.scenario, task.intention, task.predictor)
 
 
 def run_episode(task: EpisodeTask) -> EpisodeRecord:

@@ -132,6 +132,41 @@ def walk_step(
 
 
 @njit(cache=True, nogil=True)
+def _stable_argsort(values: FloatArray) -> np.ndarray:
+    """``np.argsort(values, kind="mergesort")`` (NaN last, ties in index order), exactly.
+
+    A plain bottom-up merge sort: numba's generic one costs about 3 s of compilation on an empty cache. A
+    stable sort's permutation is fixed by its order, so the indices are NumPy's. Kept in each module that
+    sorts (numba refreshes a cached kernel only when its own file changes).
+    """
+    n = values.shape[0]
+    order = np.empty(n, np.int64)
+    for i in range(n):
+        order[i] = i
+    spare = np.empty(n, np.int64)
+    width = 1
+    while width < n:
+        for lo in range(0, n, 2 * width):
+            mid, hi = min(lo + width, n), min(lo + 2 * width, n)
+            i, j = lo, mid
+            for k in range(lo, hi):
+                if j < hi and i < mid:
+                    a, b = values[order[j]], values[order[i]]
+                    take_right = a < b or (np.isnan(b) and not np.isnan(a))  # strictly before
+                else:
+                    take_right = j < hi
+                if take_right:
+                    spare[k] = order[j]
+                    j += 1
+                else:
+                    spare[k] = order[i]
+                    i += 1
+        order, spare = spare, order
+        width *= 2
+    return order
+
+
+@njit(cache=True, nogil=True)
 def _social_force_kernel(
     rows: np.ndarray,
     pos: FloatArray,
@@ -163,7 +198,7 @@ def _social_force_kernel(
     for k in range(n):
         xs[k] = pos[rows[k], 0]
         r_max = max(r_max, radii[rows[k]])
-    order = np.argsort(xs, kind="mergesort")
+    order = _stable_argsort(xs)
     rank = np.empty(n, np.int64)
     for k in range(n):
         rank[order[k]] = k

@@ -159,7 +159,8 @@ class YieldTracker:
 
     def _rows(self, ids: np.ndarray) -> np.ndarray:
         st = self.state
-        pos = _find_rows(st.ids, ids)
+        # The empty start state is read-only: searching it would compile `_find_rows` a second time.
+        pos = _find_rows(st.ids, ids) if st.ids.shape[0] else np.empty(0, dtype=np.int64)
         if pos.shape[0] != ids.shape[0]:  # ids seen for the first time: add rows (sorted by id)
             new = np.setdiff1d(np.unique(ids), st.ids)
             all_ids = np.concatenate([st.ids, new])

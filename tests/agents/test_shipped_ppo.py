@@ -40,3 +40,16 @@ def test_shipped_ppo_drives():
         actions.append(float(a[0]))
         obs, *_ = env.step(a)
     assert np.ptp(actions) > 0  # it reacts to the observation, not a constant
+
+
+def test_shipped_ppo_loads_without_a_training_optimizer():
+    """Acting needs no Adam (building one imports torch._dynamo, ~2 s); its saved state is kept as is."""
+    pytest.importorskip("stable_baselines3", reason="optional extra 'rl' not installed")
+    from agents.sb3 import InferenceOnlyOptimizer
+
+    policy = make_policy("ppo")
+    optimizer = policy.model.policy.optimizer
+    assert isinstance(optimizer, InferenceOnlyOptimizer)
+    assert "param_groups" in optimizer.state_dict()  # the file's optimizer state, loaded untouched
+    with pytest.raises(RuntimeError, match="to act"):
+        optimizer.step()

@@ -1,0 +1,53 @@
+"""Small runs stay in this process, reusing the preflight's envs and models; the records do not change."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+import crossing_eval.cli as cli
+import crossing_eval.runners as runners
+from crossing_eval import tasks as tasks_module
+from crossing_eval.runners import pool_pays_off, run_tasks
+from crossing_eval.tasks import make_tasks
+
+SMALL = ["--scenarios", "zebra_case1", "--policies", "yielding,constant_speed", "--episodes", "2"]
+
+
+def test_the_pool_pays_off_only_for_enough_episodes() -> None:
+    assert not pool_pays_off(1000, 1)
+    assert not pool_pays_off(7, 2)  # the smoke run: in this process
+    assert pool_pays_off(315, 2)  # the default table: a pool
+    assert pool_pays_off(None, 2)  # an unknown number of episodes: a pool
+    assert not pool_pays_off(5, 16) and pool_pays_off(40, 16)
+
+
+def test_a_small_run_starts_no_pool_and_reuses_the_preflight_envs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(tasks_module, "_ENV_CACHE", {})
+
+    def no_pool(*args: object, **kwargs: object) -> None:
+        raise AssertionError("a small run started a worker pool")
+
+    monkeypatch.setattr(runners, "ProcessPoolExecutor", no_pool)
+    built: list[tuple[object, ...]] = []
+    make_env = tasks_module.make_env
+    monkeypatch.setattr(tasks_module, "make_env", lambda *a, **k: built.append((a, k)) or make_env(*a, **k))
+    argv = [*SMALL, "--workers", "2", "--no-progress", "--out", str(tmp_path / "out")]
+    assert cli.main(argv) == 0
+    assert "in this process" in capsys.readouterr().err
+    assert len(built) == 2  # (qlb, s-cgru) for yielding and none for constant_speed, built once each
+
+
+def test_in_process_records_equal_the_pool_records(monkeypatch: pytest.MonkeyPatch) -> None:
+    tasks = make_tasks(["zebra_case1"], ["yielding", "constant_speed"], 2, 2024)
+    monkeypatch.setattr(tasks_module, "_ENV_CACHE", {})
+    tasks_module.cached_env("zebra_case1", "qlb", "s-cgru")  # as the preflight leaves it
+    here = run_tasks(tasks, workers=1, show_progress=False)
+    pool = run_tasks(tasks, workers=2, show_progress=False)
+    assert [r.key for r in here] == [r.key for r in pool]
+    assert [r.result for r in here] == [r.result for r in pool]
+    assert [r.actions for r in here] == [r.actions for r in pool]
+    assert [r.episode_return for r in here] == [r.episode_return for r in pool]
