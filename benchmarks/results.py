@@ -215,8 +215,9 @@ def write_block(entry: Entry, block: str) -> bool:
 
 def measure(entry: Entry, fingerprint: str) -> None:
     """Run the entry's command and store its JSON with the commit and the fingerprint."""
+    commit = source_commit()  # before the run: the entry's own JSON and page make the tree dirty after it
     data = entry.measure()
-    data.update(name=entry.name, commit=source_commit(), fingerprint=fingerprint)
+    data.update(name=entry.name, commit=commit, fingerprint=fingerprint)
     entry.json_path.parent.mkdir(parents=True, exist_ok=True)
     entry.json_path.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n", encoding="utf-8")
 
