@@ -9,6 +9,7 @@ identical whatever ``--workers`` or ``--backend`` (see `crossing_eval.tasks`).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from collections.abc import Sequence
@@ -287,9 +288,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except OutputFolderError as exc:
         return _fail(f"argument --out: {exc}")
     try:
-        return _run(args, labels, staged, tasks)
+        code = _run(args, labels, staged, tasks)
     finally:
         staged.discard()  # a no-op after a commit; drops half-written output on any error or Ctrl-C
+    if getattr(args, "exit_now", False):  # Ray's own threads may still retry a connection: do not wait
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    return code
 
 
 def _tasks(args: argparse.Namespace) -> list[EpisodeTask]:
@@ -346,7 +352,10 @@ def _run(
             show_progress=not args.no_progress,
             ray_timeout=args.ray_timeout,
         )
-    except (ScenarioError, EpisodeFailed, RayConnectionError, WrapperError, ModelFileError) as exc:
+    except RayConnectionError as exc:
+        args.exit_now = exc.abandoned
+        return _fail(str(exc))
+    except (ScenarioError, EpisodeFailed, WrapperError, ModelFileError) as exc:
         # WrapperError: a predictor that cannot be loaded (missing module, corrupt or tampered weights).
         return _fail(str(exc))
     except RunInterrupted as exc:  # SIGINT / SIGTERM: workers stopped, the previous output untouched

@@ -50,6 +50,9 @@ class EpisodeFailed(RuntimeError):
 class RayConnectionError(ConnectionError):
     """No Ray cluster answered at the given address within the timeout."""
 
+    abandoned: bool = False
+    """A `ray.init` call was left running in a background thread: the process should exit now."""
+
 
 def run_episode_guarded(task: EpisodeTask) -> EpisodeRecord:
     """`run_episode` whose errors always arrive whole in the parent process.
@@ -215,6 +218,37 @@ def check_ray_address(address: str, timeout: float = DEFAULT_RAY_TIMEOUT) -> Non
         ) from None
 
 
+def _init_within(ray: Any, kwargs: dict[str, Any], timeout: float) -> None:
+    """`ray.init(**kwargs)` that gives up after `timeout` seconds.
+
+    Something that listens at the address but is not a Ray cluster makes `ray.init` retry for minutes; it
+    runs in a daemon thread here, and when it has not returned in time the run stops with
+    `RayConnectionError` (its ``abandoned`` flag tells the CLI to exit at once, as Ray's own threads may
+    still be retrying).
+    """
+    outcome: dict[str, BaseException | None] = {}
+
+    def target() -> None:
+        try:
+            ray.init(**kwargs)
+            outcome["error"] = None
+        except BaseException as exc:  # handed to the caller's thread below
+            outcome["error"] = exc
+
+    thread = threading.Thread(target=target, name="ray-init", daemon=True)
+    thread.start()
+    thread.join(timeout)
+    if thread.is_alive():
+        error = RayConnectionError(
+            f"no Ray cluster answered at {kwargs['address']!r} within {timeout:g} s (--ray-timeout);"
+            " something may listen there that is not a Ray cluster: check the address"
+        )
+        error.abandoned = True
+        raise error
+    if outcome.get("error") is not None:
+        raise outcome["error"]  # type: ignore[misc]
+
+
 def _run_ray(
     tasks: Iterable[EpisodeTask],
     address: str | None,
@@ -243,7 +277,12 @@ def _run_ray(
             check_ray_address(address, timeout)
             kwargs["address"] = address
         try:
-            ray.init(**kwargs)
+            if "address" in kwargs and kwargs["address"] != "local":
+                _init_within(ray, kwargs, timeout)
+            else:
+                ray.init(**kwargs)
+        except RayConnectionError:
+            raise
         except Exception as exc:  # e.g. something listens there but is not Ray, or no local cluster
             text = str(exc).strip().splitlines()
             raise RayConnectionError(

@@ -8,6 +8,7 @@ import sys
 import time
 from collections.abc import Iterator
 
+import psutil
 import pytest
 
 from crossing_eval.runners import IN_FLIGHT_PER_WORKER, RunInterrupted, _run_local, run_tasks
@@ -52,12 +53,16 @@ except RunInterrupted as exc:
 def test_a_signal_stops_the_run_within_seconds(sig: int, code: int) -> None:
     proc = subprocess.Popen([sys.executable, "-c", SCRIPT], stderr=subprocess.PIPE, text=True)
     time.sleep(8)
+    children = psutil.Process(proc.pid).children(recursive=True)  # workers, forkserver, resource tracker
+    assert children, "the pool had not started"
     t0 = time.monotonic()
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=30)
     assert proc.returncode == code, err
     assert time.monotonic() - t0 < 15
     assert "Traceback" not in err and err.strip().count("\n") == 0 and "stopped by" in err
+    _, alive = psutil.wait_procs(children, timeout=10)
+    assert not alive, f"orphaned processes: {[p.pid for p in alive]}"
 
 
 def test_run_interrupted_carries_the_shell_exit_code() -> None:

@@ -22,19 +22,6 @@ def test_every_shipped_checkpoint_matches_the_manifest():
         checkpoints.verify_shipped(path)
 
 
-@pytest.fixture
-def shipped_copy(tmp_path: Path, monkeypatch) -> Path:
-    """A private 'shipped' folder holding one real checkpoint and its manifest."""
-    folder = tmp_path / "weights"
-    folder.mkdir()
-    path = folder / "s-cgru_all.pt"
-    shutil.copy(WEIGHTS_DIR / "s-cgru_all.pt", path)
-    monkeypatch.setattr(checkpoints, "SHIPPED_DIR", folder.resolve())
-    monkeypatch.setattr(checkpoints, "MANIFEST", folder / "manifest.json")
-    checkpoints.update_manifest()
-    return path
-
-
 def test_flipped_bytes_in_a_shipped_checkpoint_are_refused(shipped_copy: Path):
     load_model(shipped_copy)  # intact: loads
     data = bytearray(shipped_copy.read_bytes())

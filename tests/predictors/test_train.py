@@ -1,6 +1,5 @@
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -160,19 +159,6 @@ def test_train_stops_early_without_val_progress(data_root: Path, tmp_path: Path)
     assert meta["epochs_run"] == meta["best_epoch"] + 1  # stopped right after the first non-improvement
     assert min(vals[:-1]) <= vals[-1]
     assert meta["patience"] == 1 and meta["lr_plateau"] == 1
-
-
-@pytest.fixture
-def shipped_copy(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    """A private 'shipped' folder holding one real checkpoint and its manifest."""
-    folder = tmp_path / "weights"
-    folder.mkdir()
-    path = folder / "s-cgru_all.pt"
-    shutil.copy(WEIGHTS_DIR / "s-cgru_all.pt", path)
-    monkeypatch.setattr(checkpoints, "SHIPPED_DIR", folder.resolve())
-    monkeypatch.setattr(checkpoints, "MANIFEST", folder / "manifest.json")
-    checkpoints.update_manifest()
-    return path
 
 
 def _force_args(data_root: Path, out: Path) -> list[str]:

@@ -7,23 +7,12 @@ import pytest
 
 from crossing_env.pedestrians.force_update import irrational_neighbour_fraction, updated_ped_intensity
 from crossing_env.pedestrians.population import PedestrianPopulation
-from crossing_env.types import BehaviourEvent
 from crossing_env.world import World
 from scenarios.config import (
     BehaviourConfig,
     PedestrianConfig,
     ScenarioConfig,
 )
-
-
-def _run(scenario: ScenarioConfig, seconds: float, seed: int = 0) -> tuple[World, list[BehaviourEvent]]:
-    """Run a world (the ego holds its speed) and return it with every behaviour event logged."""
-    world = World(scenario, np.random.default_rng(seed))
-    events = []
-    for _ in range(round(seconds / world.dt)):
-        world.step(0.0)
-        events.extend(world.pedestrians.events)
-    return world, events
 
 
 # ------------------------------------------------------------------ seed Case 2

@@ -10,7 +10,6 @@ import numpy as np
 
 from crossing_env.pedestrians.population import CarSnapshot
 from crossing_env.pedestrians.transitions import CROSSING, WAITING
-from crossing_env.types import BehaviourEvent
 from crossing_env.world import World
 from scenarios.config import (
     BehaviourConfig,
@@ -22,16 +21,7 @@ from scenarios.config import (
     SignalConfig,
     TrafficConfig,
 )
-
-
-def _run(scenario: ScenarioConfig, seconds: float, seed: int = 0) -> tuple[World, list[BehaviourEvent]]:
-    """Run a world (the ego holds its speed) and return it with every behaviour event logged."""
-    world = World(scenario, np.random.default_rng(seed))
-    events = []
-    for _ in range(round(seconds / world.dt)):
-        world.step(0.0)
-        events.extend(world.pedestrians.events)
-    return world, events
+from tests.crossing_env.pedestrians.worlds import run_world as _run
 
 
 # ------------------------------------------------------------------ pedestrians in the world
