@@ -46,7 +46,7 @@ from rollout.wrappers import DEFAULT_INTENTION, DEFAULT_PREDICTOR, WrapperError,
 from scenarios import ScenarioError, list_scenarios, load_scenario
 
 DEFAULT_EPISODES = 5
-"""Episodes per (scenario, policy) in the default run: 8 scenarios x 5 seeds x 6 policies = 240 episodes."""
+"""Episodes per (scenario, policy) in the default run: 12 scenarios x 5 seeds x 7 policies = 420 episodes."""
 MAX_EPISODES = 10_000
 """Bound on ``--episodes``: the records of a run stay in memory until the tables are written."""
 DEFAULT_SEED = 2024
