@@ -32,6 +32,7 @@ import numpy as np
 
 from crossing_common.files import write_bytes_atomic
 from crossing_env.safety import json_safe
+from crossing_eval.ncap import ncap_markdown
 from crossing_eval.report import csv_cell, per_scenario_rows, report_markdown, scenario_labels
 from crossing_eval.summary import format_table
 from crossing_eval.tasks import EpisodeRecord
@@ -389,9 +390,11 @@ def write_outputs(
     _write_summary_csv(summary, policies, out)
     header, rows = per_scenario_rows(summary, labels, policies)
     write_bytes_atomic(out / "per_scenario.csv", _csv_text(header, rows).encode("utf-8"))
-    write_bytes_atomic(
-        out / "report.md", report_markdown(summary, policies, labels, settings).encode("utf-8")
-    )
+    report = report_markdown(summary, policies, labels, settings)
+    ncap = ncap_markdown(records)
+    if ncap:  # before the definitions, after the world-health line
+        report = report.replace("\n## Definitions\n", "\n" + ncap + "\n## Definitions\n", 1)
+    write_bytes_atomic(out / "report.md", report.encode("utf-8"))
     write_bytes_atomic(out / "table.txt", (format_table(summary, policies) + "\n").encode("utf-8"))
     _plot(records, summary, policies, out)
     worst = save_worst(records, out)

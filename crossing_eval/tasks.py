@@ -57,6 +57,8 @@ class EpisodeRecord:
     """Last `GroundTruth` of the episode (lets the replay verify itself)."""
     episode_return: float = float("nan")
     """Sum of the env's rewards over the episode (`info['rewards']` terms)."""
+    initial_speed: float = float("nan")
+    """The ego's speed after reset (m/s); the NCAP-style table bins episodes by it."""
 
     @property
     def key(self) -> tuple[str, str, int]:
@@ -144,4 +146,5 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
         predictors=list(used),
         final_ground_truth=episode.final_ground_truth,
         episode_return=episode.episode_return,
+        initial_speed=episode.initial_speed,
     )

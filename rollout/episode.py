@@ -55,6 +55,8 @@ class Episode:
     """Sum of the env's rewards."""
     final_ground_truth: GroundTruth
     """Last ground truth (lets a replay check that it reproduced the episode)."""
+    initial_speed: float = float("nan")
+    """The ego's speed after reset (m/s): drawn per seed where a scenario's conflict sweeps it (NCAP)."""
 
 
 def slot_ids(env: gym.Env) -> np.ndarray:
@@ -117,12 +119,15 @@ def run_episode(
     taken: list[float] = []
     episode_return = 0.0
     gt: GroundTruth | None = None
+    initial_speed = float("nan")
     for frame in frames(env, seed, policy, actions, max_steps):
         gt = frame.ground_truth
+        if frame.step == 0:
+            initial_speed = float(np.hypot(*gt.ego_velocity))
         if frame.action is None:
             continue
         taken.append(float(frame.action[0]))
         episode_return += frame.reward
         metrics.update(gt)
     assert gt is not None  # frame 0 always comes
-    return Episode(metrics.result().as_dict(), taken, episode_return, gt)
+    return Episode(metrics.result().as_dict(), taken, episode_return, gt, initial_speed)
