@@ -270,8 +270,8 @@ class SB3Policy:
     """
 
     name: ClassVar[str] = "sb3"
-    _CACHE: ClassVar[dict[str, tuple[Any, dict[str, Any] | None]]] = {}
-    _STATS_USED: ClassVar[dict[str, Path | None]] = {}
+    _CACHE: ClassVar[dict[str, tuple[Any, dict[str, Any] | None, Path | None]]] = {}
+    """Per model file: the model, its statistics and the statistics file they came from (None: none)."""
 
     def __init__(self, path: str | Path) -> None:
         """Load the model at `path` (a ``.zip``) and its VecNormalize statistics, if saved beside it."""
@@ -281,18 +281,17 @@ class SB3Policy:
         key = str(p.resolve())
         if key not in self._CACHE:
             pickled = _pickled_stats(p)
-            found = [c for c in stats_candidates(p) if c.is_file()]
-            if pickled and not found:
+            stats = stats_path(p)
+            found = stats if stats.is_file() else None
+            if pickled and found is None:
                 raise ModelFileError(
                     f"{pickled[0]}: pickled statistics are never loaded (a pickle can run code); convert"
                     " your own file once with agents.sb3.convert_pickled_stats to"
                     f" {stats_candidates(p)[0].name}"
                 )
-            self._CACHE[key] = (_load_model(p), _load_stats(found[0]) if found else None)
-            self._STATS_USED[key] = found[0] if found else None
-        self.model, self.stats = self._CACHE[key]
-        self.stats_file: Path | None = self._STATS_USED.get(key)
-        """The statistics file used (None: the model runs on raw observations)."""
+            self._CACHE[key] = (_load_model(p), _load_stats(found) if found else None, found)
+        self.model, self.stats, self.stats_file = self._CACHE[key]
+        # stats_file: the statistics file used (None: the model runs on raw observations)
         keys = getattr(self.model.observation_space, "spaces", {})
         self.uses_predictors = any(k in keys for k in PREDICTOR_KEYS)
         self.keys = tuple(keys)

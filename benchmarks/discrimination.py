@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 import time
 from collections import defaultdict
@@ -31,7 +30,9 @@ from typing import Any
 import numpy as np
 
 from crossing_common.files import write_text_atomic
+from crossing_eval.provenance import source_commit
 from crossing_eval.runners import default_workers, run_tasks
+from crossing_eval.statistics import censored_delay
 from crossing_eval.tasks import EpisodeRecord, make_tasks
 from scenarios import list_scenarios, load_scenario
 
@@ -43,17 +44,6 @@ BASE_SEED = 7000
 """Base seed of the report (not the table's 2024, so the report is not tuned on the table's episodes)."""
 UNTARGETED = frozenset({"default"})
 """Scenarios not built around a conflict (free traffic): the careless-driver target does not apply."""
-
-
-def _commit() -> str:
-    try:
-        out = subprocess.run(
-            ["git", "rev-parse", "--short", "HEAD"], cwd=REPO, capture_output=True, text=True, check=True
-        ).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain"], cwd=REPO, capture_output=True, text=True)
-        return out + ("-dirty" if dirty.stdout.strip() else "")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
 
 
 def _num(value: Any, missing: float) -> float:
@@ -85,7 +75,7 @@ def cell(records: list[EpisodeRecord], duration: float) -> dict[str, Any]:
     violated = np.array([r["yield_violations"] > 0 for r in res], dtype=bool)
     passed = np.array([r["passed_crossing"] for r in res], dtype=bool)
     ttp = np.array([_num(r["time_to_pass"], float("nan")) for r in res], dtype=np.float64)
-    censored = np.where(passed & np.isfinite(ttp), ttp, duration)
+    censored = censored_delay(ttp, passed, duration)  # the table's rule: never passed → the duration
     ttc = np.array([_num(r["min_ttc"], float("inf")) for r in res], dtype=np.float64)
     return {
         "episodes": len(res),
@@ -93,8 +83,8 @@ def cell(records: list[EpisodeRecord], duration: float) -> dict[str, Any]:
         "collision_rate": float(collided.mean()),
         "violation_rate": float(violated.mean()),
         "collision_or_violation_rate": float((collided | violated).mean()),
-        "pass_rate": float(passed.mean()),
-        "censored_time_to_pass": float(censored.mean()),
+        "pass_rate": censored["pass_rate"],
+        "censored_time_to_pass": censored["censored_mean_delay"],
         "min_ttc_p5": _json_float(float(np.percentile(ttc, 5))),
     }
 
@@ -113,7 +103,7 @@ def measure(scenarios: list[str], seeds: int, workers: int, progress: bool) -> d
     }
     return {
         "command": "python benchmarks/discrimination.py " + " ".join(sys.argv[1:]),
-        "commit": _commit(),
+        "commit": source_commit(),
         "seeds": seeds,
         "base_seed": BASE_SEED,
         "wall_seconds": round(wall, 1),

@@ -234,7 +234,9 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         parser.error(f"unknown entries {unknown}; known: {', '.join(ENTRIES)}")
     fingerprint = behaviour_fingerprint()
-    chosen = [ENTRIES[n] for n in args.names] + [e for e in ENTRIES.values() if e.tier == args.tier]
+    chosen = list(
+        dict.fromkeys([ENTRIES[n] for n in args.names] + [e for e in ENTRIES.values() if e.tier == args.tier])
+    )
     for entry in chosen:
         print(f"measuring {entry.name} ...", file=sys.stderr)
         measure(entry, fingerprint)

@@ -90,18 +90,6 @@ class Traffic:
         else:
             self.y[i] = self.geometry.lane_y[self.lane[i]]
 
-    def positions(self) -> FloatArray:
-        """(n, 2) centres."""
-        out = np.empty((self.capacity, 2))
-        out[:, 0], out[:, 1] = self.x, self.y
-        return out
-
-    def velocities(self) -> FloatArray:
-        """(n, 2) velocities."""
-        out = np.zeros((self.capacity, 2))
-        out[:, 0] = self.speed * self.direction
-        return out
-
     def boxes(self, mask: np.ndarray | None = None) -> FloatArray:
         """(k, 4) axis-aligned boxes [x_min, y_min, x_max, y_max] of the selected (default: active) slots."""
         return _boxes(self.x, self.y, self.length, self.width, self.active if mask is None else mask)

@@ -100,16 +100,19 @@ class World:
         peds.step(self.time, self._car_snapshot(), green)
         # Background drivers: obstacles are pedestrians on the road, at the kerb, or on the zebra
         # (positions have not moved since the masks were refreshed at the end of the last step).
-        at_zebra = tr.give_way(
-            self.time,
-            dt,
-            peds.position,
-            peds.velocity,
-            peds.radius,
-            self.ped_on_crossing & peds.active,
-            peds.waiting_at_zebra(),
-            self.time - peds.wait_time,
-        )
+        if self.scenario.crossing.kind == "zebra":
+            at_zebra = tr.give_way(
+                self.time,
+                dt,
+                peds.position,
+                peds.velocity,
+                peds.radius,
+                self.ped_on_crossing & peds.active,
+                peds.waiting_at_zebra(),
+                self.time - peds.wait_time,
+            )
+        else:  # nobody gives way at a signal or an unmarked crossing: no per-step masks to build
+            at_zebra = np.zeros(tr.capacity, dtype=bool)
         acc = tr.background_accelerations(
             peds.position,
             self.ped_on_road,

@@ -28,7 +28,7 @@ from crossing_eval.plugins import (
     policy_spec,
     predictor_spec,
 )
-from crossing_eval.provenance import provenance, trajectory_predictors
+from crossing_eval.provenance import run_provenance
 from crossing_eval.report import scenario_labels
 from crossing_eval.runners import (
     DEFAULT_RAY_TIMEOUT,
@@ -246,12 +246,7 @@ def _settings(args: argparse.Namespace, records: Sequence[EpisodeRecord]) -> dic
         "predictor": args.predictor,
         "intention": args.intention,
         "predictors_used": sorted({p for r in records for p in r.predictors}),
-        "provenance": provenance(
-            args.scenarios,
-            args.policies,
-            trajectory_predictors([p for r in records for p in r.predictors]),
-            args.argv,
-        ),
+        "provenance": run_provenance(args, records),
     }
 
 

@@ -123,14 +123,13 @@ def write_grid_outputs(records: Sequence[EpisodeRecord], args: Any, out: Path) -
 
     # Imported here: the table needs scipy and matplotlib, which a plain `crossing-eval` does not.
     from crossing_eval.prediction_value import format_markdown, value_table, write_value_outputs
-    from crossing_eval.provenance import provenance, trajectory_predictors
+    from crossing_eval.provenance import run_provenance
 
     table = value_table(group_rows(records), seed=args.seed)
     settings = grid_settings(args)
     files = write_value_outputs(table, settings, out)
     files.append(_write_episodes(records, out))
-    labels = [p for r in records for p in r.predictors]
-    prov = provenance(args.scenarios, args.policies, trajectory_predictors(labels), args.argv)
+    prov = run_provenance(args, records)
     write_text_atomic(out / "provenance.json", json.dumps(prov, indent=1, sort_keys=True) + "\n")
     files.append("provenance.json")
     return format_markdown(table, settings), files

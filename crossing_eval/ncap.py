@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 from collections.abc import Sequence
+from pathlib import Path
 
 from crossing_eval.tasks import EpisodeRecord
 
@@ -32,7 +33,7 @@ def ncap_rows(records: Sequence[EpisodeRecord]) -> list[tuple[str, str, str, int
     """(scenario, policy, "lo-hi km/h", episodes, avoidance rate, mean impact speed km/h or nan) rows."""
     groups: dict[tuple[str, str, tuple[int, int]], list[EpisodeRecord]] = defaultdict(list)
     for rec in records:
-        name = rec.task.scenario.rsplit("/", 1)[-1].removesuffix(".toml")
+        name = Path(rec.task.scenario).stem
         speed_bin = _bin(rec.initial_speed)
         if name.startswith(PREFIX) and speed_bin is not None:
             groups[(name, rec.task.policy, speed_bin)].append(rec)

@@ -83,9 +83,6 @@ CSV_EPISODE_FIELDS = (
 # ---------------------------------------------------------------------------------------------------------
 
 
-_csv_value = csv_cell
-
-
 def _csv_text(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
@@ -125,7 +122,7 @@ def _write_episodes_csv(records: Sequence[EpisodeRecord], out: Path) -> None:
             r.task.policy,
             r.task.episode,
             r.task.seed,
-            *(_csv_value(r.result[f]) for f in CSV_EPISODE_FIELDS[4:]),
+            *(csv_cell(r.result[f]) for f in CSV_EPISODE_FIELDS[4:]),
         ]
         for r in records
     ]
@@ -140,7 +137,7 @@ def _write_summary_csv(summary: dict[str, Any], policies: Sequence[str], out: Pa
     rows = []
     for name, agg in entries:
         lo, hi = agg["collision_ci95"]
-        rows.append([name, *(_csv_value(agg[k]) for k in keys), _csv_value(lo), _csv_value(hi)])
+        rows.append([name, *(csv_cell(agg[k]) for k in keys), csv_cell(lo), csv_cell(hi)])
     header = ["policy", *keys, "collision_ci95_low", "collision_ci95_high"]
     write_bytes_atomic(out / "summary.csv", _csv_text(header, rows).encode("utf-8"))
 
@@ -390,10 +387,7 @@ def write_outputs(
     _write_summary_csv(summary, policies, out)
     header, rows = per_scenario_rows(summary, labels, policies)
     write_bytes_atomic(out / "per_scenario.csv", _csv_text(header, rows).encode("utf-8"))
-    report = report_markdown(summary, policies, labels, settings)
-    ncap = ncap_markdown(records)
-    if ncap:  # before the definitions, after the world-health line
-        report = report.replace("\n## Definitions\n", "\n" + ncap + "\n## Definitions\n", 1)
+    report = report_markdown(summary, policies, labels, settings, extra_sections=ncap_markdown(records))
     write_bytes_atomic(out / "report.md", report.encode("utf-8"))
     write_bytes_atomic(out / "table.txt", (format_table(summary, policies) + "\n").encode("utf-8"))
     _plot(records, summary, policies, out)

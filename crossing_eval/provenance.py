@@ -129,6 +129,12 @@ def provenance(
     }
 
 
+def run_provenance(args: Any, records: Sequence[Any]) -> dict[str, Any]:
+    """`provenance` of a `crossing-eval` run (plain or grid) from its parsed arguments and its records."""
+    labels = [label for record in records for label in record.predictors]
+    return provenance(args.scenarios, args.policies, trajectory_predictors(labels), args.argv)
+
+
 def trajectory_predictors(labels: Sequence[str]) -> list[str]:
     """Predictor names from wrapper labels such as ``trajectory:s-cgru`` (what actually ran)."""
     return sorted({label.split(":", 1)[1] for label in labels if label.startswith("trajectory:")})

@@ -95,8 +95,12 @@ def report_markdown(
     policies: Sequence[str],
     labels: Mapping[str, str],
     settings: Mapping[str, Any],
+    extra_sections: str = "",
 ) -> str:
-    """``report.md``: the settings, the per-policy table, one table per scenario, the column definitions."""
+    """``report.md``: the settings, the per-policy table, one table per scenario, the column definitions.
+
+    `extra_sections` (markdown, e.g. the NCAP-style scoring) goes after the world-health line.
+    """
     header = [c.header for c in TABLE_COLUMNS]
     per_policy = [_row(p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]]
     used = ", ".join(settings.get("predictors_used") or []) or "none"
@@ -119,6 +123,8 @@ def report_markdown(
     for scenario, rows in by_scenario.items():
         parts += ["", f"## {scenario}", "", _markdown(header, rows)]
     parts += ["", "## World health", "", format_world_health(summary) + "."]
+    if extra_sections:
+        parts += ["", extra_sections.rstrip("\n")]
     parts += ["", "## Definitions", "", *definitions_markdown()]
     return "\n".join(parts) + "\n"
 

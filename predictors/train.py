@@ -57,7 +57,6 @@ __all__ = [
     "SCALE_GRID",
     "WEIGHTS_DIR",
     "TrainConfig",
-    "calibrate_sampling",
     "checkpoint_meta",
     "load_model",
     "load_training_data",
@@ -156,25 +155,14 @@ SCALE_GRID: tuple[float, ...] = (0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 0.75, 1.0)
 
 
 @torch.no_grad()
-def calibrate_sampling(path: Path, val_w: Windows, num_samples: int = 20, seed: int = 0) -> float:
-    """Pick ``sample_scale`` from :data:`SCALE_GRID` by per-pedestrian best-of-20 ADE on the val split.
-
-    Why: in our few-minute runs the Gaussian head's sigma barely moves from its initial 1 m per step, so
-    raw samples are far too spread; a single post-hoc scale fixes that without touching the test split.
-    The checkpoint is rewritten with the chosen scale in its config.
-    """
-    model = load_model(path)
-    meta = checkpoint_meta(path)
-    meta.update(_calibrate(model, val_w, num_samples, seed))
-    save_checkpoint(path, model, meta)
-    return model.config.sample_scale
-
-
-@torch.no_grad()
 def _calibrate(
     model: SocialRecurrent, val_w: Windows, num_samples: int = 20, seed: int = 0
 ) -> dict[str, float]:
-    """Set ``model``'s ``sample_scale`` as :func:`calibrate_sampling` picks it; the metadata it adds."""
+    """Set ``sample_scale`` from :data:`SCALE_GRID` by best-of-20 ADE on val; returns the metadata it adds.
+
+    Why: in our few-minute runs the Gaussian head's sigma barely moves from its initial 1 m per step, so
+    raw samples are far too spread; a single post-hoc scale fixes that without touching the test split.
+    """
     gen_seed = seed
     best_scale, best_ade = 1.0, float("inf")
     b = to_batch(val_w)

@@ -21,7 +21,6 @@ import dataclasses
 import difflib
 import functools
 import json
-import re
 import sys
 import types
 import typing
@@ -35,9 +34,8 @@ from scenarios.config import (
 )
 from scenarios.cross_field import cross_field_problems
 from scenarios.errors import Problem, ScenarioError
-from scenarios.ranges import VALUE_RULES
+from scenarios.ranges import _IDENTIFIER, VALUE_RULES
 
-_IDENTIFIER = re.compile(r"\A[A-Za-z0-9_-]+\Z")
 """Names and bare keys: letters, digits, '_', '-' (`\\Z`, unlike `$`, refuses a trailing newline)."""
 
 

@@ -29,7 +29,6 @@ from crossing_env.pedestrians.transitions import (
     KERB_STANDOFF,
     TURNS_BACK,
     WAITING,
-    anyone_at_zebra,
     begin_transitions,
     detour,
     finish_transitions,
@@ -138,7 +137,7 @@ class PedestrianPopulation(PedestrianSpawning):
         )
         """(has a crossing, x min, x max, y min, y max) of the zebra area, as `_geometric_masks` takes it."""
         self._zebra_span = (float(scenario.crossing.position), float(scenario.crossing.width))
-        """(centre x, width) of the crossing, as `_anyone_at_zebra` takes it."""
+        """(centre x, width) of the crossing, as `waiting_at_zebra` and the drivers' offers take it."""
         self._force_parameters = model_parameters(self.config.social_force)
         """The social-force config as the kernels take it (unpacked once, not every step)."""
         self._walk_y = (
@@ -322,10 +321,6 @@ class PedestrianPopulation(PedestrianSpawning):
         """(n,) waiting to cross at the zebra (within its width of the centre line; jaywalkers aside)."""
         position, width = self._zebra_span
         return (self.state == WAITING) & (np.abs(self.crossing_x - position) < width) & ~self.jaywalker
-
-    def anyone_at_zebra(self, on_crossing: np.ndarray) -> bool:
-        """Whether anyone waits by the crossing (jaywalkers aside) or is on it (`on_crossing`)."""
-        return anyone_at_zebra(self.state, self.crossing_x, self.jaywalker, on_crossing, *self._zebra_span)
 
     def irrational_now(self) -> np.ndarray:
         """(n,) visibly acting irrationally this step (what others can see and react to).

@@ -318,25 +318,6 @@ def detour(
 
 
 @njit(cache=True, nogil=True)
-def anyone_at_zebra(
-    state: np.ndarray,
-    crossing_x: FloatArray,
-    jaywalker: np.ndarray,
-    on_crossing: np.ndarray,
-    crossing_position: float,
-    crossing_width: float,
-) -> bool:
-    """`PedestrianPopulation.anyone_at_zebra` in one pass."""
-    for i in range(state.shape[0]):
-        if on_crossing[i] and state[i] != INACTIVE:
-            return True
-        waiting_here = state[i] == WAITING and abs(crossing_x[i] - crossing_position) < crossing_width
-        if waiting_here and not jaywalker[i]:
-            return True
-    return False
-
-
-@njit(cache=True, nogil=True)
 def geometric_masks(
     state: np.ndarray,
     position: FloatArray,

@@ -50,7 +50,6 @@ def _evil_data(sentinel: Path) -> bytes:
 
 def _fresh(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(SB3Policy, "_CACHE", {})
-    monkeypatch.setattr(SB3Policy, "_STATS_USED", {})
 
 
 def test_crafted_pickled_entries_in_a_zip_are_never_unpickled(tmp_path, sentinel, monkeypatch) -> None:
