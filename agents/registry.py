@@ -11,7 +11,9 @@ inside worker processes and Ray tasks, which get the spec string, never a live o
 - ``"pkg.module:attr"``: a policy class whose constructor takes its config (``attr.config_class``, a
   `DrivingConfig` subclass, as the built-ins) or a factory (a function or class) called with those of
   ``scenario=`` and ``dt=`` that it names (all with ``**kwargs``; none for a no-argument constructor),
-- ``"sb3:path/model.zip"``: a Stable-Baselines3 model (`agents.sb3.SB3Policy`, the ``rl`` extra).
+- ``"sb3:path/model.zip"``: a Stable-Baselines3 model (`agents.sb3.SB3Policy`, the ``rl`` extra),
+- ``"mlp:path/policy.npz"``: a learned policy stored as data (`agents.mlp`, numpy only), deployed through
+  the yielding shield when the file says it was trained through it.
 """
 
 from __future__ import annotations
@@ -191,6 +193,31 @@ def _sb3_entry(spec: str) -> PolicyEntry:
     return PolicyEntry(factory, None, None)
 
 
+def mlp_policy(path: str | Path, scenario: ScenarioConfig | None = None, dt: float | None = None) -> Policy:
+    """The numpy policy in `path` (`agents.mlp`), through the yielding shield if it was trained so."""
+    from agents.mlp import MLPPolicy
+    from agents.shield import ShieldedPolicy, YieldingShield
+
+    learned = MLPPolicy(path)
+    if not learned.weights.shielded:
+        return learned
+    cfg = YieldingConfig() if scenario is None else replace(YieldingConfig(), **scenario_settings(scenario))
+    return ShieldedPolicy(learned, YieldingShield(cfg if dt is None else replace(cfg, dt=float(dt))))
+
+
+def _mlp_entry(spec: str) -> PolicyEntry:
+    path = spec[len("mlp:") :]
+    if not path:
+        raise ValueError(f"policy {spec!r}: expected 'mlp:path/to/policy.npz'")
+    if not Path(path).is_file():
+        raise ValueError(f"policy {spec!r}: no such file {path!r}")
+
+    def factory(scenario: ScenarioConfig | None = None, dt: float | None = None) -> Policy:
+        return mlp_policy(path, scenario, dt)
+
+    return PolicyEntry(factory, None, uses_predictors=False)
+
+
 def policy_entry(name: str) -> PolicyEntry:
     """The entry for a registered name, an entry point, ``pkg.module:attr`` or ``sb3:path``.
 
@@ -201,6 +228,8 @@ def policy_entry(name: str) -> PolicyEntry:
         return _REGISTRY[name]
     if name.startswith("sb3:"):
         return _sb3_entry(name)
+    if name.startswith("mlp:"):
+        return _mlp_entry(name)
     eps = _entry_points()
     if name in eps:
         return _plugin_entry(_import_attr(eps[name]))
@@ -208,7 +237,7 @@ def policy_entry(name: str) -> PolicyEntry:
         return _plugin_entry(_import_attr(name))
     raise ValueError(
         f"unknown policy {name!r}; choose from {', '.join(policy_names())},"
-        " 'pkg.module:attr' or 'sb3:model.zip'"
+        " 'pkg.module:attr', 'sb3:model.zip' or 'mlp:policy.npz'"
     )
 
 

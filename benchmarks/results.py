@@ -115,6 +115,33 @@ def _render_discrimination(data: dict[str, Any]) -> str:
     return render_body(data)
 
 
+def _measure_safe_rl() -> dict[str, Any]:
+    """`studies/safe_rl.py`: trains what is missing in ``runs/safe_rl`` (about 1 h per learner on 2 cores),
+    then the curves, steps to safety, selection and the paired evaluation against `yielding`."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "safe_rl.json"
+        subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "studies.safe_rl",
+                "--runs",
+                str(REPO / "runs" / "safe_rl"),
+                "--out",
+                str(out),
+            ],
+            check=True,
+            cwd=REPO,
+        )
+        return json.loads(out.read_text(encoding="utf-8"))
+
+
+def _render_safe_rl(data: dict[str, Any]) -> str:
+    from studies.safe_rl import render_body
+
+    return render_body(data)
+
+
 @dataclass(frozen=True)
 class Entry:
     """One registered result: how it is measured, where its JSON lives, where it is rendered."""
@@ -155,6 +182,7 @@ ENTRIES: dict[str, Entry] = {
             _render_discrimination,
             REPO / "docs" / "scenario_discrimination.md",
         ),
+        Entry("safe_rl", "slow", _measure_safe_rl, _render_safe_rl, REPO / "docs" / "rl.md"),
     )
 }
 

@@ -45,6 +45,11 @@ def policy_spec(text: str) -> str:
         if not sb3_available():
             raise ValueError(f"policy {text!r} needs Stable-Baselines3: pip install -e '.[rl]'")
         text = f"sb3:{path.resolve()}"
+    elif text.startswith("mlp:"):
+        path = Path(text[len("mlp:") :]).expanduser()
+        if not path.is_file():
+            raise ValueError(f"policy {text!r}: no such file {str(path)!r}")
+        text = f"mlp:{path.resolve()}"
     elif text == "ppo" and not sb3_available():
         raise ValueError("policy 'ppo' needs Stable-Baselines3: pip install -e '.[rl]'")
     policy_entry(text)
@@ -74,5 +79,6 @@ def policies_help() -> str:
         f" Names: {', '.join(policy_names())};"
         " also 'pkg.module:attr' (a policy class with config_class, or a factory(scenario=, dt=)),"
         " installed entry points of the group 'crossing_env.policies', and 'sb3:path/model.zip'"
-        " (Stable-Baselines3, with model.vecnormalize.pkl beside it)"
+        " (Stable-Baselines3, with model.vecnormalize.npz beside it), 'mlp:path/policy.npz' (a learned policy"
+        " stored as data, numpy only)"
     )

@@ -105,6 +105,8 @@ def model_files(policies: Sequence[str], predictors: Sequence[str]) -> list[Path
             path = SHIPPED_PPO
         elif spec.startswith("sb3:"):
             path = Path(spec[len("sb3:") :])
+        elif spec.startswith("mlp:"):
+            path = Path(spec[len("mlp:") :])
         if path is not None and path.is_file():
             files.append(path)
             from agents.sb3 import stats_path

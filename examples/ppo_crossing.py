@@ -2,6 +2,20 @@
 
     pip install -e ".[rl]"
     python examples/ppo_crossing.py --timesteps 500000 --n-envs 4 --out runs/ppo --seed 0
+    python examples/ppo_crossing.py --algo ppo_lagrangian --cost-budget 2 ...   # constrained
+    python examples/ppo_crossing.py --algo shielded ...                          # through the shield
+
+Three learners (``--algo``):
+
+- ``ppo``: plain PPO on the env's reward;
+- ``ppo_lagrangian``: PPO-Lagrangian, the constraint "expected episode cost ≤ ``--cost-budget``" learned
+  with no rule in the loop: the reward is shaped to r − λ·cost (`crossing_env.constrained.LagrangianReward`,
+  cost = ``info["cost"]``) and λ follows dual ascent once per rollout, λ ← max(0, λ + lr·(J̄_C − d)) with J̄_C
+  the mean cost of the episodes that ended in the rollout (the lightweight SB3 pattern: no separate cost
+  critic; the penalty reaches the policy through the value function);
+- ``shielded``: PPO acting through the yielding policy's safety envelope (`agents.shield`): an action
+  above the envelope's limit is replaced by the limit before the env sees it (post-posed shield); PPO
+  stores and learns from the action it asked for.
 
 PPO uses SB3's ``MultiInputPolicy`` (its ``CombinedExtractor`` flattens each Box of the dict observation).
 Every reset draws one built-in scenario (`ScenarioMix`), so the policy meets them all. ``VecNormalize``
@@ -9,9 +23,12 @@ standardises the observation (positions reach ±500 m) and the reward. Envs run 
 default (``--subproc`` for worker processes; on a 2-core machine they cost more than they save).
 
 Outputs in ``--out``: ``model.zip`` + ``model.vecnormalize.npz`` (the pair ``crossing-eval --policies
-sb3:OUT/model.zip`` loads), ``step_N.zip`` + statistics (checkpoints every ``--eval-every`` steps, to
-select from), ``progress.csv`` (SB3's logger), ``episodes.csv`` (one row per training episode: return,
-collision, yield obligations and violations, delay) and ``learning_curve.png``. The final evaluation
+sb3:OUT/model.zip`` loads), ``model.policy.npz`` (the same actor as plain data, `agents.mlp`: ``crossing-eval
+--policies mlp:OUT/model.policy.npz`` runs it with numpy only, through the shield if it was trained through
+it), ``step_N.zip`` + statistics + ``step_N.policy.npz`` (checkpoints every ``--eval-every`` steps, to select
+from), ``progress.csv`` (SB3's logger), ``episodes.csv`` (one row per training episode: env step, return
+without the Lagrangian penalty, episode cost, collision, yield obligations and violations, delay, duration,
+λ, wall-clock seconds) and ``learning_curve.png``. The final evaluation
 runs `crossing-eval`'s own episode code (`crossing_eval.tasks`) on its default seeds and prints the mean
 return with the metrics.
 """
@@ -30,6 +47,9 @@ import numpy as np
 
 # Heavy imports (torch, SB3, the env) happen inside the functions, so bad arguments fail fast.
 
+ALGOS = ("ppo", "ppo_lagrangian", "shielded")
+"""The learners of ``--algo``."""
+
 
 @dataclass(frozen=True)
 class Args:
@@ -37,6 +57,12 @@ class Args:
 
     timesteps: int = 200_000
     """Total environment steps of training."""
+    algo: str = "ppo"
+    """Learner: ``ppo``, ``ppo_lagrangian`` (cost constraint by a Lagrange multiplier) or ``shielded``."""
+    cost_budget: float = 2.0
+    """PPO-Lagrangian's budget d on the expected episode cost (`crossing_env.constrained.CostBudget`)."""
+    lambda_lr: float = 0.05
+    """Dual-ascent step of the Lagrange multiplier per rollout."""
     scenarios: tuple[str, ...] = ()
     """Scenarios drawn per reset (empty: every built-in one)."""
     n_envs: int = 4
@@ -81,6 +107,11 @@ def parse_args(argv: list[str] | None = None) -> Args:
         formatter_class=DefaultsHelpFormatter,
     )
     p.add_argument("--timesteps", type=positive, default=d.timesteps, help="training environment steps")
+    p.add_argument("--algo", choices=ALGOS, default=d.algo, help="learner (see the module docstring)")
+    p.add_argument(
+        "--cost-budget", type=float, default=d.cost_budget, help="episode cost budget (Lagrangian)"
+    )
+    p.add_argument("--lambda-lr", type=float, default=d.lambda_lr, help="multiplier step per rollout")
     p.add_argument(
         "--scenarios", default="", help="comma-separated scenarios drawn per reset (default: all built-in)"
     )
@@ -112,18 +143,29 @@ def parse_args(argv: list[str] | None = None) -> Args:
             p.error(f"argument --scenarios: unknown scenario {n!r}; built-in: {', '.join(builtin)}")
     if not 0.0 < a.gamma <= 1.0 or not a.learning_rate > 0:
         p.error(f"--gamma must be in (0, 1] and --learning-rate > 0, got {a.gamma!r}, {a.learning_rate!r}")
+    if not a.cost_budget >= 0 or not a.lambda_lr >= 0:
+        p.error(f"--cost-budget and --lambda-lr must be >= 0, got {a.cost_budget!r}, {a.lambda_lr!r}")
+    if a.subproc and a.algo == "ppo_lagrangian":
+        p.error("--subproc: the Lagrange multiplier is shared in-process; run ppo_lagrangian without it")
     return Args(
-        a.timesteps, names, a.n_envs, a.subproc, a.n_steps, a.batch_size, a.learning_rate, a.gamma,
+        a.timesteps, a.algo, a.cost_budget, a.lambda_lr, names, a.n_envs, a.subproc, a.n_steps,
+        a.batch_size, a.learning_rate, a.gamma,
         a.predictors, a.bc_steps, a.log_std_init, a.seed, a.eval_every, a.eval_episodes, a.out,
         not a.no_progress,
     )  # fmt: skip
 
 
-def make_env(scenarios: tuple[str, ...], predictors: bool) -> Any:
-    """One training env: a scenario drawn per reset, episode metrics in `info`, optional predictors."""
+def make_env(scenarios: tuple[str, ...], predictors: bool, algo: str = "ppo", multiplier: Any = None) -> Any:
+    """One training env: a scenario drawn per reset, episode metrics in `info`, optional predictors.
+
+    Stack (inner to outer): the env, `ScenarioMix` (scenario per reset, episode metrics), the shield
+    (``shielded``), the Lagrangian reward (``ppo_lagrangian``, λ from `multiplier`), the prediction wrappers
+    (``--predictors``), a filter keeping the keys the policy reads, SB3's `Monitor`.
+    """
     import gymnasium as gym
 
     import crossing_env
+    from crossing_env.observation import BASE_KEYS, CROSSING_INTENTION_KEY, PREDICTED_PATHS_KEY
     from crossing_env.safety import EpisodeMetrics
 
     class ScenarioMix(gym.Wrapper):
@@ -141,17 +183,23 @@ def make_env(scenarios: tuple[str, ...], predictors: bool) -> Any:
             obs, info = self.env.reset(seed=seed, options={**(options or {}), "scenario": name})
             base = self.env.unwrapped
             self._metrics = EpisodeMetrics(base.scenario, base.config.dt)
+            self._return = 0.0
+            self._cost = 0.0
             return obs, info
 
         def step(self, action: np.ndarray) -> tuple[Any, float, bool, bool, dict]:
             obs, reward, terminated, truncated, info = self.env.step(action)
             self._metrics.update(info["ground_truth"])
+            self._return += float(reward)
+            self._cost += float(info["cost"])
             if terminated or truncated:
                 r = self._metrics.result()
                 info = {
                     **info,
                     "episode_metrics": {
                         "scenario": r.scenario,
+                        "return": self._return,
+                        "cost": self._cost,
                         "collision": float(r.collision),
                         "yield_obligations": r.yield_obligations,
                         "yield_violations": r.yield_violations,
@@ -163,10 +211,23 @@ def make_env(scenarios: tuple[str, ...], predictors: bool) -> Any:
 
     env = gym.make(crossing_env.ENV_ID, scenario=scenarios[0])
     env = ScenarioMix(env, scenarios)
+    if algo == "shielded":
+        from agents import make_policy
+        from agents.shield import ShieldAction
+
+        env = ShieldAction(env, lambda scenario, dt: make_policy("yielding", scenario=scenario, dt=dt).config)
+    if algo == "ppo_lagrangian":
+        from crossing_env.constrained import LagrangianReward
+
+        env = LagrangianReward(env, multiplier)
+    keys = list(BASE_KEYS)
     if predictors:  # the same wrappers, in the same order, as crossing-eval gives a predicting policy
         from rollout import DEFAULT_INTENTION, DEFAULT_PREDICTOR, wrap
 
         env, _ = wrap(env, DEFAULT_INTENTION, DEFAULT_PREDICTOR)
+        keys += [CROSSING_INTENTION_KEY, PREDICTED_PATHS_KEY]
+    # Only the keys a policy file records (`agents.mlp`): keys the env may add later do not change its input.
+    env = gym.wrappers.FilterObservation(env, keys)
     from stable_baselines3.common.monitor import Monitor
 
     return Monitor(env)
@@ -175,23 +236,41 @@ def make_env(scenarios: tuple[str, ...], predictors: bool) -> Any:
 class EpisodeLog:
     """SB3 callback: one CSV row per finished training episode (return and the safety metrics)."""
 
-    FIELDS = ("step", "scenario", "return", "collision", "obligations", "violations", "delay", "duration")
+    FIELDS = (
+        "step", "scenario", "return", "cost", "collision", "obligations", "violations", "delay", "duration",
+        "multiplier", "wall_s",
+    )  # fmt: skip
 
-    def __init__(self, path: Path) -> None:
+    def __init__(
+        self, path: Path, multiplier: Any = None, budget: float = 0.0, lambda_lr: float = 0.0
+    ) -> None:
         from stable_baselines3.common.callbacks import BaseCallback
 
         log = self
+        self.multiplier = multiplier
+        self.costs: list[float] = []
+        self.t0 = time.perf_counter()
 
         class _Callback(BaseCallback):
             def _on_step(self) -> bool:
                 for info in self.locals["infos"]:
-                    if "episode" in info and "episode_metrics" in info:
+                    if "episode_metrics" in info:
                         m = info["episode_metrics"]
+                        log.costs.append(m["cost"])
+                        lam = log.multiplier.value if log.multiplier is not None else 0.0
                         log.writer.writerow(
-                            [self.num_timesteps, m["scenario"], info["episode"]["r"], m["collision"],
-                             m["yield_obligations"], m["yield_violations"], m["delay"], m["duration"]]
+                            [self.num_timesteps, m["scenario"], m["return"], m["cost"], m["collision"],
+                             m["yield_obligations"], m["yield_violations"], m["delay"], m["duration"], lam,
+                             round(time.perf_counter() - log.t0, 2)]
                         )  # fmt: skip
                 return True
+
+            def _on_rollout_end(self) -> None:
+                # Dual ascent on the episodes that ended in this rollout (none ended: λ stays).
+                if log.multiplier is not None and log.costs:
+                    log.multiplier.update(float(np.mean(log.costs)), budget, lambda_lr)
+                    self.logger.record("train/lagrange_multiplier", log.multiplier.value)
+                log.costs.clear()
 
         self.file = path.open("w", newline="", buffering=1)  # line-buffered: readable while training
         self.writer = csv.writer(self.file)
@@ -302,14 +381,13 @@ def plot_learning_curve(episodes_csv: Path, png: Path, window: int = 200) -> Non
     plt.close(fig)
 
 
-def evaluate(model_path: Path, scenarios: tuple[str, ...], episodes: int, workers: int = 1) -> dict[str, Any]:
-    """`crossing-eval`'s episodes (same seeds, same code) for the saved model; metrics plus mean return."""
+def evaluate(name: str, scenarios: tuple[str, ...], episodes: int, workers: int = 1) -> dict[str, Any]:
+    """`crossing-eval`'s episodes (same seeds, same code) for policy spec `name`; metrics plus mean return."""
     from crossing_eval.plugins import policy_spec
     from crossing_eval.runners import run_tasks
     from crossing_eval.summary import summarise
     from crossing_eval.tasks import make_tasks
 
-    name = f"sb3:{model_path}"
     policy_spec(name)  # fails early with a clear message
     tasks = make_tasks(list(scenarios), [name], episodes, 2024)
     records = run_tasks(tasks, workers, "local", None, show_progress=False)
@@ -328,8 +406,13 @@ def main(argv: list[str] | None = None) -> int:
     from stable_baselines3.common.logger import configure
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
+    from crossing_env.constrained import Multiplier
+
     args.out.mkdir(parents=True, exist_ok=True)
-    fns = [lambda: make_env(args.scenarios, args.predictors) for _ in range(args.n_envs)]
+    multiplier = Multiplier(0.0) if args.algo == "ppo_lagrangian" else None
+    fns = [
+        lambda: make_env(args.scenarios, args.predictors, args.algo, multiplier) for _ in range(args.n_envs)
+    ]
     venv = SubprocVecEnv(fns, start_method="forkserver") if args.subproc else DummyVecEnv(fns)
     venv.seed(args.seed)
     venv = VecNormalize(venv, norm_obs=True, norm_reward=True, gamma=args.gamma)
@@ -351,52 +434,61 @@ def main(argv: list[str] | None = None) -> int:
         print(f"warm start: imitated the yielding policy on {args.bc_steps} steps (MSE {mse:.4f})"
               f" in {time.perf_counter() - t_bc:.1f} s")  # fmt: skip
     model.set_logger(configure(str(args.out), ["csv"]))
-    log = EpisodeLog(args.out / "episodes.csv")
+    log = EpisodeLog(args.out / "episodes.csv", multiplier, args.cost_budget, args.lambda_lr)
     from stable_baselines3.common.callbacks import CallbackList, EveryNTimesteps
 
-    from agents.sb3 import save_stats
-
+    shielded = args.algo == "shielded"
     callbacks: list[Any] = [log.callback]
     if args.eval_every:
-        callbacks.append(EveryNTimesteps(args.eval_every, _Checkpoint(model, venv, args.out)))
+        callbacks.append(EveryNTimesteps(args.eval_every, _Checkpoint(model, venv, args.out, shielded)))
     t0 = time.perf_counter()
-    model.save(args.out / "step_0.zip")
-    save_stats(venv, args.out / "step_0.vecnormalize.npz")
+    _save(model, venv, args.out / "step_0.zip", shielded)
     try:
         model.learn(args.timesteps, callback=CallbackList(callbacks), progress_bar=args.progress)
     except KeyboardInterrupt:  # Ctrl-C stops training early; what was learnt is still saved and evaluated
         print(f"interrupted at {model.num_timesteps} steps", file=sys.stderr)
     train_s = time.perf_counter() - t0
     log.close()
+    lam = f", final λ {multiplier.value:.3f}" if multiplier is not None else ""
     print(
-        f"trained PPO for {model.num_timesteps} steps in {train_s:.1f} s"
-        f" ({model.num_timesteps / train_s:.0f} steps/s), seed {args.seed}, {len(args.scenarios)} scenario(s)"
+        f"trained PPO ({args.algo}) for {model.num_timesteps} steps in {train_s:.1f} s"
+        f" ({model.num_timesteps / train_s:.0f} steps/s), seed {args.seed},"
+        f" {len(args.scenarios)} scenario(s){lam}"
     )
-    model.save(args.out / "model.zip")
-    save_stats(venv, args.out / "model.vecnormalize.npz")
+    _save(model, venv, args.out / "model.zip", shielded)
     plot_learning_curve(args.out / "episodes.csv", args.out / "learning_curve.png")
-    print(f"saved {args.out}/model.zip (+ model.vecnormalize.npz), episodes.csv, learning_curve.png")
+    print(
+        f"saved {args.out}/model.zip (+ model.vecnormalize.npz, model.policy.npz), episodes.csv,"
+        " learning_curve.png"
+    )
     venv.close()
     if args.eval_episodes:
         from crossing_eval.summary import format_table
 
-        ev = evaluate(args.out / "model.zip", args.scenarios, args.eval_episodes)
-        print(format_table(ev["summary"], [f"sb3:{args.out / 'model.zip'}"]))
+        spec = f"mlp:{args.out / 'model.policy.npz'}"
+        ev = evaluate(spec, args.scenarios, args.eval_episodes)
+        print(format_table(ev["summary"], [spec]))
         print(f"mean return {ev['mean_return']:.2f} over {len(ev['records'])} episodes")
     return 0
 
 
-def _Checkpoint(model: Any, venv: Any, out: Path) -> Any:
-    """Callback: saves ``step_N.zip`` + its normalisation statistics at every call."""
-    from stable_baselines3.common.callbacks import BaseCallback
-
+def _save(model: Any, venv: Any, path: Path, shielded: bool) -> None:
+    """``NAME.zip`` (SB3), ``NAME.vecnormalize.npz`` (statistics), ``NAME.policy.npz`` (`agents.mlp`)."""
+    from agents.mlp import export_sb3
     from agents.sb3 import save_stats
+
+    model.save(path)
+    save_stats(venv, path.with_suffix(".vecnormalize.npz"))
+    export_sb3(model, venv, path.with_suffix(".policy.npz"), shielded=shielded)
+
+
+def _Checkpoint(model: Any, venv: Any, out: Path, shielded: bool) -> Any:
+    """Callback: saves ``step_N.zip`` + its statistics + its policy file at every call."""
+    from stable_baselines3.common.callbacks import BaseCallback
 
     class _Save(BaseCallback):
         def _on_step(self) -> bool:
-            path = out / f"step_{self.num_timesteps}.zip"
-            model.save(path)
-            save_stats(venv, path.with_suffix(".vecnormalize.npz"))
+            _save(model, venv, out / f"step_{self.num_timesteps}.zip", shielded)
             return True
 
     return _Save()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import os
 import subprocess
 import sys
@@ -33,16 +34,19 @@ def test_ppo_example_trains_logs_plots_and_evaluates(tmp_path: Path) -> None:
         check=False,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
-    assert "trained PPO for 512 steps" in proc.stdout
+    assert "trained PPO (ppo) for 512 steps" in proc.stdout
     assert "warm start: imitated the yielding policy on 64 steps" in proc.stdout
     assert "collision rate [95% CI]" in proc.stdout and "mean return" in proc.stdout
     model = out / "model.zip"
     assert model.is_file() and model.stat().st_size > 1000
     assert (out / "model.vecnormalize.npz").is_file() and (out / "step_256.zip").is_file()
+    assert (out / "model.policy.npz").is_file() and (out / "step_256.policy.npz").is_file()
     assert not list(out.glob("*.pkl")), "statistics are data (npz), never pickle"
     assert (out / "learning_curve.png").stat().st_size > 1000
     header = (out / "episodes.csv").read_text().splitlines()[0]
-    assert header == "step,scenario,return,collision,obligations,violations,delay,duration"
+    assert header == (
+        "step,scenario,return,cost,collision,obligations,violations,delay,duration,multiplier,wall_s"
+    )
     assert (out / "progress.csv").is_file()
 
 
@@ -58,3 +62,36 @@ def test_ppo_example_rejects_bad_timesteps(tmp_path: Path) -> None:
     )
     assert proc.returncode == 2
     assert "'-5'" in proc.stderr
+
+
+def test_ppo_lagrangian_raises_its_multiplier_while_the_cost_exceeds_the_budget(tmp_path: Path) -> None:
+    """A zero budget where episodes cost something: λ must grow from 0 during training.
+
+    With almost no exploration noise the untrained actor holds its speed (action ≈ 0), and the NCAP dummy
+    is timed to meet a car that does: near misses and collisions, so the cost exceeds the budget.
+    """
+    out = tmp_path / "lag"
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(REPO / "examples" / "ppo_crossing.py"),
+            *("--algo", "ppo_lagrangian", "--cost-budget", "0", "--lambda-lr", "0.5"),
+            *("--timesteps", "1536", "--n-envs", "2", "--n-steps", "256", "--batch-size", "128"),
+            *("--eval-every", "0", "--eval-episodes", "0", "--seed", "3", "--log-std-init", "-3"),
+            *("--scenarios", "ncap_cpna", "--out", str(out), "--no-progress"),
+        ],
+        cwd=tmp_path,
+        env=dict(os.environ, PYTHONPATH=str(REPO), OMP_NUM_THREADS="1"),
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    with (out / "episodes.csv").open() as fh:
+        rows = list(csv.DictReader(fh))
+    costs = [float(r["cost"]) for r in rows]
+    lambdas = [float(r["multiplier"]) for r in rows]
+    assert rows and sum(costs) > 0
+    assert lambdas[0] == 0.0 and lambdas[-1] > 0.0 and lambdas == sorted(lambdas)
+    assert "final λ" in proc.stdout
