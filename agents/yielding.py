@@ -94,7 +94,7 @@ class YieldingPolicy:
 
     def reset(self, seed: int | None = None) -> None:
         """Forget offer timers, stop commitments and tracks (`agents.Policy.reset`; `seed` unused)."""
-        self._offers = np.zeros((0, 0, 3))
+        self._offers = np.zeros((0, 0, 4))
         self._committed = np.zeros(0, dtype=bool)
         self._tracks: list[dict[int, TrackMemory]] = []
         self._clock = np.zeros(0)
@@ -156,22 +156,25 @@ class YieldingPolicy:
 
         Each pedestrian standing (below `still_speed`) at the crossing while the car stands (< 0.1 m/s)
         within a few metres of the stop line, with no one on the crossing to give way to, has been offered
-        the way; after `offer_timeout` of that they have declined it. Pedestrians carry no identity in the
-        observation, so they are tracked by position (the nearest waiting pedestrian within
-        `decline_match_radius` of where they were last step), as (x, y, offered time) per batch element,
-        until the car has passed the crossing or is again far (> 20 m) before the line, which also resets
-        a vector env's elements at the start of an episode. Someone who arrives later starts their own
-        timer: the metric, and the law, give them their own offer.
+        the way; after `offer_timeout` of that they have declined it. They are followed by track id when
+        the observation has ``pedestrian_tracks``, else by position (the nearest waiting pedestrian within
+        `decline_match_radius` of where they were last step), as (x, y, offered time, track id) per batch
+        element, until the car has passed the crossing or is again far (> 20 m) before the line, which also
+        resets a vector env's elements at the start of an episode. Someone who arrives later starts their
+        own timer: the metric, and the law, give them their own offer.
         """
         b, k = waiting.shape
         if self._offers.shape[:2] != (b, k):
-            self._offers = np.full((b, k, 3), np.nan)
+            self._offers = np.full((b, k, 4), np.nan)
         offers = self._offers
         fresh = (view.past >= 0.0) | (view.to_stop > 20.0)
         offers[fresh] = np.nan
         tracked = np.isfinite(offers[..., 0])  # (B, D)
         match = np.full((b, k), -1)
-        if tracked.any():
+        if tracked.any() and view.tracks is not None:
+            same = (view.tracks[:, :, None] == offers[:, None, :, 3]) & waiting[:, :, None]  # (B, K, D)
+            match = np.where(same.any(axis=2), np.argmax(same, axis=2), -1)
+        elif tracked.any():
             dx = view.px[:, :, None] - offers[:, None, :, 0]
             dy = view.py[:, :, None] - offers[:, None, :, 1]
             dist = np.where(waiting[:, :, None] & tracked[:, None, :], np.hypot(dx, dy), np.inf)  # (B,K,D)
@@ -194,6 +197,7 @@ class YieldingPolicy:
             match = np.where(new, slot, match)
             e, p = np.nonzero(new)
             offers[e, slot[e, p], 2] = 0.0
+            offers[e, slot[e, p], 3] = np.nan if view.tracks is None else view.tracks[e, p]
         e, p = np.nonzero(match >= 0)
         d = match[e, p]
         offers[e, d, 0] = view.px[e, p]

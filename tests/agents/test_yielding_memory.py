@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agents import PredictiveYielding, YieldingPolicy
+from agents import PredictiveYielding, YieldingConfig, YieldingPolicy
 from crossing_env.observation import PEDESTRIAN_TRACKS_KEY
 from tests.agents.test_policies import K, accel, crossing_centre, make_obs, stack
 
@@ -93,3 +93,15 @@ def test_memory_is_per_batch_element_and_cleared_at_a_new_episode() -> None:
     assert a[0, 0] < -2.0 and a[1, 0] < -2.0
     policy.reset()
     assert policy._tracks == []
+
+
+def test_a_declined_offer_follows_the_track_not_the_position() -> None:
+    """Someone who declined and then shuffles further than `decline_match_radius` has still declined."""
+    cfg = YieldingConfig(offer_timeout=1.0, dt=0.1)
+    x0 = crossing_centre(TO_STOP)
+    # Standing (no velocity observed), 0.55 m further along the kerb each step, at the crossing ± 1.5 m.
+    spots = [{"dx": x0 - 3.3 + 0.55 * i, "dy": -2.6, "w": 1} for i in range(12)]
+    by_track = drive(YieldingPolicy(cfg), spots, tracks=True)
+    by_position = drive(YieldingPolicy(cfg), spots, tracks=False)
+    assert by_track[0] <= 0.0 and by_track[-1] > 0.5  # declined after the timeout: the car goes
+    assert max(by_position) <= 0.0  # by position it looks like a newcomer every step and keeps waiting
