@@ -109,7 +109,7 @@ class YieldingConfig(DrivingConfig):
     takes the offer as declined and goes (pedestrians on the crossing are still given way); half a second
     more than `MetricsConfig.offer_timeout` (3 s), so the car never leaves before an offer counts as made."""
     dt: float = 0.1
-    """Time between calls (s), the env's `EnvConfig.dt`; used by the offer timer."""
+    """Time between calls (s), the env's `EnvConfig.dt`; used by the offer timer and the track memory."""
     decline_match_radius: float = 0.5
     """After an offer times out, the pedestrians then waiting are remembered by position (tracked step to
     step within this radius, m); only they count as having declined. Someone who arrives at the kerb later
