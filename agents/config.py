@@ -109,7 +109,7 @@ class YieldingConfig(DrivingConfig):
     takes the offer as declined and goes (pedestrians on the crossing are still given way); half a second
     more than `MetricsConfig.offer_timeout` (3 s), so the car never leaves before an offer counts as made."""
     dt: float = 0.1
-    """Time between calls (s), the env's `EnvConfig.dt`; used by the offer timer."""
+    """Time between calls (s), the env's `EnvConfig.dt`; used by the offer timer and the track memory."""
     decline_match_radius: float = 0.5
     """After an offer times out, the pedestrians then waiting are remembered by position (tracked step to
     step within this radius, m); only they count as having declined. Someone who arrives at the kerb later
@@ -117,6 +117,21 @@ class YieldingConfig(DrivingConfig):
     still_speed: float = 0.5
     """A waiting pedestrian's offer timer runs only while they stand (below this speed, m/s): someone still
     walking up to the kerb has not declined anything yet."""
+    remember_tracks: bool = True
+    """With ``pedestrian_tracks`` in the observation, remember each track (per batch element): someone who
+    has crossed, or who keeps walking along the kerb away from the crossing, is not waiting to cross."""
+    returning_speed: float = 0.3
+    """A pedestrian remembered as having crossed (seen on the road, now off it on the other side than where
+    first seen) counts as waiting again only while stepping towards the road faster than this (m/s)."""
+    along_kerb_speed: float = 0.8
+    """Speed (m/s) along the road, away from the crossing's centre, above which a pedestrian by the kerb
+    walks away along it; after `along_kerb_time` of that (same track) it is not waiting to cross."""
+    along_kerb_time: float = 0.5
+    """How long (s) a track must keep walking away along the kerb before it is released: someone waiting
+    who shuffles a step sideways is not."""
+    track_forget: float = 3.0
+    """A remembered track not seen for this long (s) is forgotten (a tracker re-issues ids after an
+    occlusion anyway; `ObservationConfig.track_memory`)."""
     no_overtaking_zone: float = 30.0
     """At a zebra, a moving vehicle in an adjacent lane of the ego's direction whose front is within this
     distance (m) before the crossing (or on it) is not overtaken: the ego follows it (IDM, at most

@@ -26,6 +26,7 @@ from crossing_env.observation import (
     CROSSING_INTENTION_KEY,
     EGO_KEY,
     HISTORY_INTERVAL,
+    PEDESTRIAN_TRACKS_KEY,
     PEDESTRIANS_KEY,
     PREDICTED_PATHS_KEY,
     VEHICLES_KEY,
@@ -63,6 +64,7 @@ class View:
     intention: np.ndarray | None  # (B, K)
     paths: np.ndarray | None  # (B, K, T, 2)
     intent: np.ndarray | None = None  # (B, K) P(means to cross at all), from ``crossing_intent`` if given
+    tracks: np.ndarray | None = None  # (B, K) int64 track ids (0: empty slot), from ``pedestrian_tracks``
 
 
 def parse_observation(obs: ObsLike) -> View:
@@ -96,6 +98,10 @@ def parse_observation(obs: ObsLike) -> View:
     if intent is not None:
         intent = np.asarray(intent, dtype=np.float64).reshape(b, k)
     present = ped[..., PedestrianColumn.PRESENCE] > 0.5
+    tracks = obs.get(PEDESTRIAN_TRACKS_KEY)
+    if tracks is not None:
+        ids = np.rint(np.asarray(tracks, dtype=np.float64).reshape(b, k))
+        tracks = np.where(present, ids, 0).astype(np.int64)
     return View(
         lead=lead,
         speed=ego[:, EgoColumn.SPEED],
@@ -115,6 +121,7 @@ def parse_observation(obs: ObsLike) -> View:
         intention=intention,
         paths=paths,
         intent=intent,
+        tracks=tracks,
     )
 
 

@@ -7,7 +7,7 @@ the Intelligent Driver Model.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import ClassVar
 
 import numpy as np
@@ -27,6 +27,20 @@ from agents.view import (
     travel_time,
 )
 from crossing_env.observation import VehicleColumn
+
+
+@dataclass
+class TrackMemory:
+    """What the policy remembers about one pedestrian track (one batch element's observation)."""
+
+    origin: float
+    """Side of the road it was first seen on (+1 left of the road's centre, −1 right), or walking from."""
+    seen: float
+    """Policy clock (s) when last observed."""
+    was_on_road: bool = False
+    """Seen on the carriageway at some point."""
+    away_time: float = 0.0
+    """Time (s) it has kept walking along the kerb away from the crossing, without a break."""
 
 
 class YieldingPolicy:
@@ -57,7 +71,14 @@ class YieldingPolicy:
     Otherwise it cruises at the speed limit and follows vehicles ahead (IDM). "Proceed when clear" falls
     out of re-evaluating the rules each step; the only state is the offer timer and who declined (per
     batch element), which reset themselves when the car is far before or past a crossing (`reset` clears
-    them explicitly).
+    them explicitly), and, when the observation carries ``pedestrian_tracks``, a memory per track.
+
+    **Memory** (`_settled`, per batch element, with ``pedestrian_tracks``): a pedestrian who has crossed
+    (seen on the road, now off it on the other side) or who keeps walking along the kerb away from the
+    crossing (faster than `along_kerb_speed` for `along_kerb_time`) is not waiting to cross; someone who
+    has crossed counts again while stepping towards the road. The law's duty is to people who want to
+    cross; the rule "anyone by the kerb not walking away" otherwise stops the car again for people leaving
+    the crossing they have just used. Without tracks the car remembers nothing and treats them as waiting.
 
     Departures from the literature: legal rules are simplified to what the observation shows (no gaze or
     gesture); the German "influenced" test is approximated by stopping at the line rather than creeping
@@ -69,35 +90,91 @@ class YieldingPolicy:
 
     def __init__(self, config: YieldingConfig | None = None) -> None:
         self.config = config or YieldingConfig()
-        self._offers = np.zeros((0, 0, 3))
-        self._committed = np.zeros(0, dtype=bool)
+        self.reset()
 
     def reset(self, seed: int | None = None) -> None:
-        """Forget offer timers and stop commitments (`agents.Policy.reset`; deterministic, `seed` unused)."""
-        self._offers = np.zeros((0, 0, 3))
+        """Forget offer timers, stop commitments and tracks (`agents.Policy.reset`; `seed` unused)."""
+        self._offers = np.zeros((0, 0, 4))
         self._committed = np.zeros(0, dtype=bool)
+        self._tracks: list[dict[int, TrackMemory]] = []
+        self._clock = np.zeros(0)
+        self._last_to_stop = np.zeros(0)
+
+    def _settled(self, view: View) -> np.ndarray:
+        """Update the track memory; return (B, K): pedestrians not waiting to cross by what they did.
+
+        Settled are those who have crossed (seen on the road and now off it on the other side than they
+        came from; someone first seen on the road came from the side they walk away from, or the nearer
+        one), unless stepping towards the road faster than `returning_speed`, and those who have walked
+        along the kerb away from the crossing's centre faster than `along_kerb_speed` for
+        `along_kerb_time`. A vector env restarts an element's episode without `reset`: the ego's distance
+        to the stop line, which never grows within an episode (the car does not reverse), jumps up, and
+        the element's memory is cleared (track ids restart at 1 each episode).
+        """
+        b, k = view.present.shape
+        settled = np.zeros((b, k), dtype=bool)
+        if view.tracks is None or not self.config.remember_tracks:
+            return settled
+        cfg = self.config
+        if len(self._tracks) != b:
+            self._tracks = [{} for _ in range(b)]
+            self._clock = np.zeros(b)
+            self._last_to_stop = np.full(b, np.inf)
+        self._clock += cfg.dt
+        mid = 0.5 * (cfg.road_right + cfg.road_left)
+        side = np.where(view.py > mid, 1.0, -1.0)
+        towards_road = self._towards_road(view)
+        near, far = self._crossing_span(view)
+        away_x = (view.px - 0.5 * (near + far)) * view.vx > 0.0
+        along_away = away_x & (np.abs(view.vx) > cfg.along_kerb_speed) & (towards_road <= cfg.returning_speed)
+        for e in range(b):
+            memory = self._tracks[e]
+            if view.to_stop[e] > self._last_to_stop[e] + 0.5:  # a new episode in this element
+                memory.clear()
+            self._last_to_stop[e] = view.to_stop[e]
+            now = float(self._clock[e])
+            for j in np.flatnonzero(view.tracks[e] > 0):
+                track = int(view.tracks[e, j])
+                entry = memory.get(track)
+                if entry is None:
+                    origin = side[e, j]
+                    if view.on_road[e, j] and abs(view.vy[e, j]) > cfg.returning_speed:
+                        origin = -np.sign(view.vy[e, j])  # the side it walks from
+                    entry = memory[track] = TrackMemory(origin=float(origin), seen=now)
+                entry.away_time = entry.away_time + cfg.dt if along_away[e, j] else 0.0
+                entry.seen = now
+                entry.was_on_road |= bool(view.on_road[e, j])
+                crossed = entry.was_on_road and not view.on_road[e, j] and side[e, j] != entry.origin
+                returning = towards_road[e, j] > cfg.returning_speed
+                settled[e, j] = (crossed and not returning) or entry.away_time >= cfg.along_kerb_time - 1e-9
+            for track in [t for t, entry in memory.items() if now - entry.seen > cfg.track_forget]:
+                del memory[track]
+        return settled
 
     def _offer_state(self, view: View, waiting: np.ndarray, legal_xing: np.ndarray) -> np.ndarray:
         """Update the offer timers; return (B, K): which waiting pedestrians have declined the car's offer.
 
         Each pedestrian standing (below `still_speed`) at the crossing while the car stands (< 0.1 m/s)
         within a few metres of the stop line, with no one on the crossing to give way to, has been offered
-        the way; after `offer_timeout` of that they have declined it. Pedestrians carry no identity in the
-        observation, so they are tracked by position (the nearest waiting pedestrian within
-        `decline_match_radius` of where they were last step), as (x, y, offered time) per batch element,
-        until the car has passed the crossing or is again far (> 20 m) before the line, which also resets
-        a vector env's elements at the start of an episode. Someone who arrives later starts their own
-        timer: the metric, and the law, give them their own offer.
+        the way; after `offer_timeout` of that they have declined it. They are followed by track id when
+        the observation has ``pedestrian_tracks``, else by position (the nearest waiting pedestrian within
+        `decline_match_radius` of where they were last step), as (x, y, offered time, track id) per batch
+        element, until the car has passed the crossing or is again far (> 20 m) before the line, which also
+        resets a vector env's elements at the start of an episode. Someone who arrives later starts their
+        own timer: the metric, and the law, give them their own offer.
         """
         b, k = waiting.shape
         if self._offers.shape[:2] != (b, k):
-            self._offers = np.full((b, k, 3), np.nan)
+            self._offers = np.full((b, k, 4), np.nan)
         offers = self._offers
         fresh = (view.past >= 0.0) | (view.to_stop > 20.0)
         offers[fresh] = np.nan
         tracked = np.isfinite(offers[..., 0])  # (B, D)
         match = np.full((b, k), -1)
-        if tracked.any():
+        if tracked.any() and view.tracks is not None:
+            same = (view.tracks[:, :, None] == offers[:, None, :, 3]) & waiting[:, :, None]  # (B, K, D)
+            match = np.where(same.any(axis=2), np.argmax(same, axis=2), -1)
+        elif tracked.any():
             dx = view.px[:, :, None] - offers[:, None, :, 0]
             dy = view.py[:, :, None] - offers[:, None, :, 1]
             dist = np.where(waiting[:, :, None] & tracked[:, None, :], np.hypot(dx, dy), np.inf)  # (B,K,D)
@@ -120,6 +197,7 @@ class YieldingPolicy:
             match = np.where(new, slot, match)
             e, p = np.nonzero(new)
             offers[e, slot[e, p], 2] = 0.0
+            offers[e, slot[e, p], 3] = np.nan if view.tracks is None else view.tracks[e, p]
         e, p = np.nonzero(match >= 0)
         d = match[e, p]
         offers[e, d, 0] = view.px[e, p]
@@ -178,9 +256,12 @@ class YieldingPolicy:
         kerb_gap = np.minimum(np.abs(view.py - cfg.road_right), np.abs(view.py - cfg.road_left))
         towards_road = self._towards_road(view)
         lingering = view.present & (towards_road > -cfg.leaving_speed) & (kerb_gap <= cfg.kerb_distance)
-        waiting = (view.waiting | lingering) & ~view.on_road
+        settled = self._settled(view)
+        waiting = (view.waiting | lingering) & ~view.on_road & ~settled
         likely = self._likely_to_cross(view, kerb_gap) if use_pred and view.intention is not None else None
-        waiting = self._yield_waiting(view, waiting, likely, kerb_gap)
+        if likely is not None:
+            likely = likely & ~settled
+        waiting = self._yield_waiting(view, waiting, likely, kerb_gap) & ~settled
         zebra = view.zebra[:, None] > 0.5
         legal_xing = (zebra & crossing_ahead & at_crossing & on_xing).any(axis=1)
         waiting_here = zebra & crossing_ahead & at_crossing & waiting

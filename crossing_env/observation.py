@@ -8,6 +8,11 @@ Frame: the ego's heading is +x, so relative positions are world positions minus 
 Pedestrians hidden behind a parked vehicle (line of sight from the ego's centre) or beyond the
 perception range (halved at night) are not observed.
 
+Tracks: each observed pedestrian carries a track id (``pedestrian_tracks``), as a perception stack's tracker
+issues them: ids count from 1 within an episode and are never reused; a pedestrian keeps its id while it
+stays observed and through an occlusion of at most `ObservationConfig.track_memory` seconds, and gets a new
+one after a longer occlusion (the tracker cannot tell it is the same person), as does a new pedestrian.
+
 Layout: the dict keys are the ``*_KEY`` constants (`BASE_KEYS` from the env, `WRAPPER_KEYS` from the
 predictor wrappers) and the columns of each array are named by `EgoColumn`, `PedestrianColumn`,
 `VehicleColumn` and `PointColumn` (x, y of history and path points). Readers index by these names, never
@@ -39,9 +44,11 @@ __all__ = [
     "PEDESTRIANS_KEY",
     "PEDESTRIAN_FEATURES",
     "PEDESTRIAN_HISTORY_KEY",
+    "PEDESTRIAN_TRACKS_KEY",
     "POSITION_BOUND",
     "PREDICTED_PATHS_KEY",
     "PREDICTED_SAMPLES_KEY",
+    "TRACK_ID_BOUND",
     "VEHICLES_KEY",
     "VEHICLE_FEATURES",
     "VELOCITY_BOUND",
@@ -56,13 +63,15 @@ __all__ = [
     "observation_space",
 ]
 
-# Keys of the observation dict. The env fills the first four; the predictor wrappers add the others.
+# Keys of the observation dict. The env fills the first five; the predictor wrappers add the others.
 EGO_KEY: Final = "ego"
 """(6,) the ego's own state, columns `EgoColumn`."""
 PEDESTRIANS_KEY: Final = "pedestrians"
 """(K, 8) one row per pedestrian slot (padded, by relevance), columns `PedestrianColumn`."""
 PEDESTRIAN_HISTORY_KEY: Final = "pedestrian_history"
 """(K, H, 2) each slot's last H positions, `HISTORY_INTERVAL` apart, oldest first; columns `PointColumn`."""
+PEDESTRIAN_TRACKS_KEY: Final = "pedestrian_tracks"
+"""(K,) each slot's track id (1, 2, ... within an episode; 0 for a padding slot): see the module docstring."""
 VEHICLES_KEY: Final = "vehicles"
 """(M, 7) one row per background vehicle slot (padded, nearest first), columns `VehicleColumn`."""
 CROSSING_INTENTION_KEY: Final = "crossing_intention"
@@ -74,7 +83,7 @@ PREDICTED_PATHS_KEY: Final = "predicted_paths"
 one interval ahead; columns `PointColumn`."""
 PREDICTED_SAMPLES_KEY: Final = "predicted_samples"
 """(K, S, T, 2) added by the trajectory wrapper with samples: sampled futures; columns `PointColumn`."""
-BASE_KEYS: Final = (EGO_KEY, PEDESTRIANS_KEY, PEDESTRIAN_HISTORY_KEY, VEHICLES_KEY)
+BASE_KEYS: Final = (EGO_KEY, PEDESTRIANS_KEY, PEDESTRIAN_HISTORY_KEY, PEDESTRIAN_TRACKS_KEY, VEHICLES_KEY)
 """The keys of the bare env's observation."""
 WRAPPER_KEYS: Final = (
     CROSSING_INTENTION_KEY,
@@ -168,6 +177,8 @@ VELOCITY_BOUND = 60.0
 WAITING_SPEED = 0.3
 """Below this speed (m/s), a pedestrian within `WAITING_DISTANCE` of the kerb looks like it is waiting."""
 WAITING_DISTANCE = 1.2
+TRACK_ID_BOUND = float(2**24)
+"""Upper bound of the track ids' Box: float32 holds every integer up to it exactly."""
 
 
 def observation_space(config: ObservationConfig) -> spaces.Dict:
@@ -185,6 +196,7 @@ def observation_space(config: ObservationConfig) -> spaces.Dict:
             EGO_KEY: spaces.Box(ego_low, ego_high, dtype=np.float32),
             PEDESTRIANS_KEY: spaces.Box(ped_low, ped_high, dtype=np.float32),
             PEDESTRIAN_HISTORY_KEY: spaces.Box(-pb, pb, shape=(k, h, len(PointColumn)), dtype=np.float32),
+            PEDESTRIAN_TRACKS_KEY: spaces.Box(0.0, TRACK_ID_BOUND, shape=(k,), dtype=np.float32),
             VEHICLES_KEY: spaces.Box(veh_low, veh_high, dtype=np.float32),
         }
     )
@@ -215,9 +227,13 @@ class ObservationBuilder:
         self.reset()
 
     def reset(self) -> None:
-        """Forget who was seen (call at every episode start: pedestrian ids restart)."""
+        """Forget who was seen (call at every episode start: pedestrian ids restart, track ids from 1)."""
         self._seen_id = np.full(0, -1, dtype=np.int64)
         self._visible_steps = np.zeros(0, dtype=np.int64)
+        self._track = np.zeros(0, dtype=np.int64)
+        self._track_owner = np.full(0, -1, dtype=np.int64)
+        self._track_seen = np.zeros(0)
+        self._next_track = np.ones(1, dtype=np.int64)
 
     def build(self, world) -> CrossingObs:
         """Observation of `world` (a `crossing_env.world.World`); fresh float32 arrays on every call."""
@@ -240,6 +256,11 @@ class ObservationBuilder:
         if self._seen_id.size != peds.capacity:
             self._seen_id = np.full(peds.capacity, -1, dtype=np.int64)
             self._visible_steps = np.zeros(peds.capacity, dtype=np.int64)
+        if self._track.size != peds.capacity:  # the episode's first call: every pool slot untracked
+            self._track = np.zeros(peds.capacity, dtype=np.int64)
+            self._track_owner = np.full(peds.capacity, -1, dtype=np.int64)
+            self._track_seen = np.full(peds.capacity, -np.inf)
+        tracks = np.zeros(cfg.max_pedestrians, dtype=np.float32)
         ped = np.zeros((cfg.max_pedestrians, len(PEDESTRIAN_FEATURES)), dtype=np.float32)
         history = np.zeros((cfg.max_pedestrians, cfg.history_length, len(PointColumn)), dtype=np.float32)
         occluders = tr.boxes(tr.parked & tr.active)
@@ -261,8 +282,15 @@ class ObservationBuilder:
             occluders,
             self._seen_id,
             self._visible_steps,
+            self._track,
+            self._track_owner,
+            self._track_seen,
+            self._next_track,
+            float(world.time),
+            float(cfg.track_memory),
             ped,
             history,
+            tracks,
             self.last_slots,
         )
         veh = np.zeros((cfg.max_vehicles, len(VEHICLE_FEATURES)), dtype=np.float32)
@@ -279,7 +307,13 @@ class ObservationBuilder:
             cfg.perception_range,
             veh,
         )
-        obs = {EGO_KEY: ego_obs, PEDESTRIANS_KEY: ped, PEDESTRIAN_HISTORY_KEY: history, VEHICLES_KEY: veh}
+        obs = {
+            EGO_KEY: ego_obs,
+            PEDESTRIANS_KEY: ped,
+            PEDESTRIAN_HISTORY_KEY: history,
+            PEDESTRIAN_TRACKS_KEY: tracks,
+            VEHICLES_KEY: veh,
+        }
         for key, value in obs.items():  # a guarantee, not a transformation: values should already fit
             low, high = self._bounds[key]
             if _clip_in_place(value.reshape(-1), low, high):
@@ -358,8 +392,15 @@ def _fill_pedestrian_slots(
     occluders: FloatArray,
     seen_id: np.ndarray,
     visible_steps: np.ndarray,
+    track: np.ndarray,
+    track_owner: np.ndarray,
+    track_seen: FloatArray,
+    next_track: np.ndarray,
+    time: float,
+    track_memory: float,
     ped: FloatArray,
     history: FloatArray,
+    tracks: FloatArray,
     last_slots: np.ndarray,
 ) -> None:
     """Fill the pedestrian slots: visible pedestrians (in range, not behind a parked car) by relevance.
@@ -369,6 +410,11 @@ def _fill_pedestrian_slots(
     cannot know where a pedestrian was while hidden, so history samples older than that repeat the oldest
     one seen (or the current position if none was seen yet) — the padding of a pedestrian who has just
     appeared.
+
+    Tracks: per pool slot, `track` (0: none), the pedestrian id it was issued for (`track_owner`) and the
+    time it was last observed (`track_seen`). A visible pedestrian keeps its slot's track if it is the
+    same pedestrian and was observed at most `track_memory` seconds ago; otherwise it gets the next id
+    (`next_track[0]`, in pool order). Every visible pedestrian is tracked, also those beyond the K slots.
     """
     capacity = position.shape[0]
     slots, length = ped.shape[0], history.shape[1]
@@ -396,6 +442,14 @@ def _fill_pedestrian_slots(
             else:
                 visible_steps[p] = 0
                 seen_id[p] = -1
+    for p in range(capacity):
+        if not np.isfinite(key[p]):
+            continue
+        if track[p] == 0 or track_owner[p] != ids[p] or time - track_seen[p] > track_memory + 1e-6:
+            track[p] = next_track[0]
+            next_track[0] += 1
+            track_owner[p] = ids[p]
+        track_seen[p] = time
     order = _stable_argsort(key)  # stable: ties keep pool order
     last_sample = step_count - step_count % history_every
     last_slots[:] = -1
@@ -404,6 +458,7 @@ def _fill_pedestrian_slots(
         if not np.isfinite(key[p]):
             break
         last_slots[k] = p
+        tracks[k] = track[p]
         x, y, vx, vy = position[p, 0], position[p, 1], velocity[p, 0], velocity[p, 1]
         on_road = kerb_south < y < kerb_north
         kerb_dist = min(abs(y - kerb_south), abs(y - kerb_north))

@@ -10,6 +10,7 @@ come first, backward lanes (towards −x) above them. Sidewalks lie beyond both 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -420,6 +421,10 @@ class ObservationConfig:
     """Objects farther than this from the ego are not observed, metres."""
     history_length: int = 8
     """Number of 0.4 s history samples per pedestrian slot (trajectory predictors need 8)."""
+    track_memory: float = 1.0
+    """Longest occlusion (s, from the last observation to the next) through which a pedestrian keeps its
+    track id (``pedestrian_tracks``); after a longer one it gets a new id, as a tracker that coasts a lost
+    track this long would issue: identity never leaks through a long occlusion."""
 
     def __post_init__(self) -> None:
         for name in ("max_pedestrians", "max_vehicles", "history_length"):
@@ -429,6 +434,10 @@ class ObservationConfig:
                 )
         if not self.perception_range > 0:
             raise ValueError(f"ObservationConfig.perception_range must be > 0, got {self.perception_range!r}")
+        if not (isinstance(self.track_memory, int | float) and 0.0 <= self.track_memory < math.inf):
+            raise ValueError(
+                f"ObservationConfig.track_memory must be a finite number >= 0 (s), got {self.track_memory!r}"
+            )
 
 
 @dataclass(frozen=True)
