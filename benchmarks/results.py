@@ -31,8 +31,9 @@ REPO = Path(__file__).resolve().parents[1]
 RESULTS_DIR = REPO / "benchmarks" / "results"
 FINGERPRINT_POLICIES = ("yielding", "constant_speed")
 """Policies of the behaviour fingerprint: one that yields (predictors on) and one that never brakes."""
-FINGERPRINT_STEPS = 60
-"""Steps per fingerprint episode: enough to pass spawning, decisions and the first conflicts."""
+FINGERPRINT_STEPS = 300
+"""Steps per fingerprint episode (30 s): long enough that the yielding policy meets, waits at and passes the
+crossing in every built-in scenario, so a change to its rules changes the hash."""
 
 
 def behaviour_fingerprint() -> str:
