@@ -40,6 +40,8 @@ SCENARIO_CSV_FIELDS = (
     "censored_episodes",
 )
 """Columns of ``per_scenario.csv`` after scenario and policy (keys of the aggregates), then the CI."""
+RESULTS_DOC = "docs/results.md"
+"""The page that defines every field of ``results.json`` and every column; report.md points to it."""
 
 
 def scenario_labels(scenarios: Sequence[str]) -> dict[str, str]:
@@ -140,5 +142,9 @@ def definitions_markdown() -> list[str]:
         "- Percentiles are over episodes (one value per episode: its minimum or maximum); 95% intervals"
         " are Wilson score intervals; `per_scenario.csv` and `summary.csv` hold the same figures unrounded"
         " (an empty cell = undefined, `inf` = never)."
+    )
+    lines.append(
+        "- Every field of `results.json` and how each column recomputes from its episode records (the"
+        f" censoring rule included): `{RESULTS_DOC}` in the crossing-env source."
     )
     return lines
