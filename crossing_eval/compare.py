@@ -62,11 +62,19 @@ def _censored(ep: dict[str, Any], horizon: float) -> float:
 
 
 def _horizons(doc: dict[str, Any]) -> dict[str, float]:
-    """Each scenario's duration, from its file; the longest episode seen if the file is gone."""
+    """Each scenario's duration used for censoring.
+
+    The run's own record (``provenance.scenario_durations``), else the scenario file, else the longest
+    episode seen (a run written before durations were recorded).
+    """
     out: dict[str, float] = {}
     for ep in doc["episodes"]:
         out[ep["scenario"]] = max(out.get(ep["scenario"], 0.0), float(ep["metrics"].get("duration") or 0.0))
+    recorded = doc.get("settings", {}).get("provenance", {}).get("scenario_durations", {})
     for name in out:
+        if name in recorded:
+            out[name] = float(recorded[name])
+            continue
         try:
             out[name] = load_scenario(name).duration
         except ScenarioError:

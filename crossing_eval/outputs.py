@@ -105,6 +105,7 @@ def _write_results_json(
                 "episode": r.task.episode,
                 "seed": r.task.seed,
                 "predictors": r.predictors,
+                "initial_speed": json_safe(r.initial_speed),
                 "metrics": r.result,
             }
             for r in records

@@ -164,9 +164,11 @@ def censored_delay(delays: ArrayLike, passed: ArrayLike, horizons: ArrayLike) ->
     """Delay with the episodes that never pass counted: pass rate plus the censored mean delay.
 
     The plain mean delay covers passing episodes only, so a policy that never passes looks prompt. Here an
-    episode that did not pass counts with a delay equal to its scenario's duration (`horizons`, s): the
-    right-censored value, a lower bound on its true delay, so the mean is a lower bound too and can only
-    rise when such episodes pass later. Returns pass_rate, censored_mean_delay and censored_episodes.
+    episode that did not pass counts with a delay equal to its scenario's duration (`horizons`, s): a fixed
+    penalty, not an estimate of its true delay (it can exceed a time-limited episode's delay by up to the
+    free-flow time, and a collision before the crossing costs it in full), chosen so that never passing is
+    never cheaper than passing late. Returns pass_rate, censored_mean_delay and censored_episodes (the
+    exact rule: ``docs/results.md``).
     """
     d = np.asarray(delays, dtype=np.float64).ravel()
     ok = np.asarray(passed, dtype=bool).ravel()

@@ -165,7 +165,12 @@ def make_env(scenarios: tuple[str, ...], predictors: bool, algo: str = "ppo", mu
     import gymnasium as gym
 
     import crossing_env
-    from crossing_env.observation import BASE_KEYS, CROSSING_INTENTION_KEY, PREDICTED_PATHS_KEY
+    from crossing_env.observation import (
+        BASE_KEYS,
+        CROSSING_INTENTION_KEY,
+        PEDESTRIAN_TRACKS_KEY,
+        PREDICTED_PATHS_KEY,
+    )
     from crossing_env.safety import EpisodeMetrics
 
     class ScenarioMix(gym.Wrapper):
@@ -220,7 +225,9 @@ def make_env(scenarios: tuple[str, ...], predictors: bool, algo: str = "ppo", mu
         from crossing_env.constrained import LagrangianReward
 
         env = LagrangianReward(env, multiplier)
-    keys = list(BASE_KEYS)
+    # Track ids are labels, not magnitudes (they only grow): an MLP would read noise; a memory needs a
+    # recurrent policy or hand-made per-track features.
+    keys = [k for k in BASE_KEYS if k != PEDESTRIAN_TRACKS_KEY]
     if predictors:  # the same wrappers, in the same order, as crossing-eval gives a predicting policy
         from rollout import DEFAULT_INTENTION, DEFAULT_PREDICTOR, wrap
 
