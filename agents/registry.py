@@ -45,8 +45,17 @@ from scenarios.config import ScenarioConfig
 
 ENTRY_POINT_GROUP = "crossing_env.policies"
 """Entry-point group under which installed packages publish policies (value: ``"pkg.module:attr"``)."""
-SHIPPED_PPO = Path(__file__).resolve().parent / "weights" / "ppo.zip"
-"""The shipped PPO policy (Stable-Baselines3 zip and its VecNormalize statistics beside it)."""
+WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
+"""Where the shipped learned policies live (with ``manifest.json``, the sha256 of each file)."""
+SHIPPED_POLICIES: dict[str, Path] = {
+    "ppo_shielded": WEIGHTS_DIR / "ppo_shielded.npz",
+    "ppo_lagrangian": WEIGHTS_DIR / "ppo_lagrangian.npz",
+}
+"""Learned policies shipped as data (`agents.mlp`; numpy only), trained by ``studies/safe_rl.py``: PPO acting
+through the yielding shield, and PPO-Lagrangian (no rule in the loop)."""
+DEFAULT_LEARNED = "ppo_shielded"
+"""The shipped learned policy in `crossing-eval`'s default table (the better of the two on the selection
+episodes; ``docs/rl.md``)."""
 
 
 @dataclass(frozen=True)
@@ -71,51 +80,55 @@ _REGISTRY: dict[str, PolicyEntry] = {
 }
 BUILTIN_POLICIES: tuple[str, ...] = tuple(_REGISTRY)
 """The rule-based policies (always available)."""
-POLICIES: tuple[str, ...] = (*BUILTIN_POLICIES, "ppo")
-"""The default table of `crossing-eval`: the rule-based policies and the shipped PPO (``rl`` extra)."""
+POLICIES: tuple[str, ...] = (*BUILTIN_POLICIES, DEFAULT_LEARNED)
+"""The default table of `crossing-eval`: the rule-based policies and the default shipped learned policy."""
 _REGISTRY["constant"] = PolicyEntry(ConstantAction, None, uses_predictors=False)
 _REGISTRY["random"] = PolicyEntry(RandomAction, None, uses_predictors=False)
 """Trivial ones for replays and smoke runs (action 0; uniform from the episode seed); not in the table."""
 
 
-SHIPPED_MANIFEST = SHIPPED_PPO.parent / "manifest.json"
-"""sha256 of each shipped policy file: a replaced or corrupted ``ppo.zip`` or statistics file is refused."""
+SHIPPED_MANIFEST = WEIGHTS_DIR / "manifest.json"
+"""sha256 of each shipped policy file: a replaced or corrupted policy file is refused."""
 _VERIFIED: set[str] = set()
+
+
+class ShippedPolicyError(ValueError):
+    """A shipped policy file is missing or differs from the manifest (the message names it)."""
 
 
 def verify_shipped_policy_files() -> None:
     """Check every file listed in ``agents/weights/manifest.json`` against its sha256 (once per process).
 
     Raises:
-        agents.sb3.ModelFileError: a file is missing or differs from the manifest (the message names it).
+        ShippedPolicyError: a file is missing or differs from the manifest (the message names it).
     """
-    from agents.sb3 import ModelFileError
-
     manifest = json.loads(SHIPPED_MANIFEST.read_text(encoding="utf-8"))
     for name, expected in manifest.items():
         if name in _VERIFIED:
             continue
-        path = SHIPPED_PPO.parent / name
+        path = WEIGHTS_DIR / name
         if not path.is_file():
-            raise ModelFileError(f"{path}: shipped policy file is missing")
+            raise ShippedPolicyError(f"{path}: shipped policy file is missing")
         actual = hashlib.sha256(path.read_bytes()).hexdigest()
         if actual != expected:
-            raise ModelFileError(
+            raise ShippedPolicyError(
                 f"{path}: sha256 {actual[:12]}... does not match the manifest's {expected[:12]}...;"
                 " the shipped policy file was replaced or corrupted (restore it from the repository)"
             )
         _VERIFIED.add(name)
 
 
-def _shipped_ppo(scenario: ScenarioConfig | None = None, dt: float | None = None) -> Policy:
-    """The PPO policy shipped in ``agents/weights/ppo.zip``, checked against the manifest first."""
-    from agents.sb3 import SB3Policy
+def _shipped(name: str) -> Callable[..., Policy]:
+    def factory(scenario: ScenarioConfig | None = None, dt: float | None = None) -> Policy:
+        verify_shipped_policy_files()
+        return mlp_policy(SHIPPED_POLICIES[name], scenario, dt)
 
-    verify_shipped_policy_files()
-    return SB3Policy(SHIPPED_PPO)
+    factory.__doc__ = f"The shipped ``{name}`` ({SHIPPED_POLICIES[name].name}), checked against the manifest."
+    return factory
 
 
-_REGISTRY["ppo"] = PolicyEntry(_shipped_ppo, None, uses_predictors=False)
+for _name in SHIPPED_POLICIES:
+    _REGISTRY[_name] = PolicyEntry(_shipped(_name), None, uses_predictors=False)
 
 
 def register_policy(

@@ -10,7 +10,14 @@ from __future__ import annotations
 import importlib.util
 from pathlib import Path
 
-from agents.registry import BUILTIN_POLICIES, POLICIES, SHIPPED_PPO, policy_entry, policy_names
+from agents.registry import (
+    BUILTIN_POLICIES,
+    DEFAULT_LEARNED,
+    POLICIES,
+    SHIPPED_POLICIES,
+    policy_entry,
+    policy_names,
+)
 
 PREDICTOR_NAMES = ("s-cgru", "cvm", "none", "oracle")
 """Built-in `--predictor` names ("oracle" is privileged); it also takes a checkpoint path."""
@@ -22,13 +29,10 @@ def sb3_available() -> bool:
 
 
 def default_policies() -> tuple[list[str], str | None]:
-    """The default table's policies, and a note when the shipped PPO row has to be left out."""
-    if not SHIPPED_PPO.is_file():
-        return list(BUILTIN_POLICIES), f"policy 'ppo' left out: {SHIPPED_PPO} is missing"
-    if not sb3_available():
-        return list(
-            BUILTIN_POLICIES
-        ), "policy 'ppo' left out: it needs the 'rl' extra (pip install -e '.[rl]')"
+    """The default table's policies, and a note when the shipped learned policy has to be left out."""
+    path = SHIPPED_POLICIES[DEFAULT_LEARNED]
+    if not path.is_file():
+        return list(BUILTIN_POLICIES), f"policy {DEFAULT_LEARNED!r} left out: {path} is missing"
     return list(POLICIES), None
 
 
@@ -50,8 +54,6 @@ def policy_spec(text: str) -> str:
         if not path.is_file():
             raise ValueError(f"policy {text!r}: no such file {str(path)!r}")
         text = f"mlp:{path.resolve()}"
-    elif text == "ppo" and not sb3_available():
-        raise ValueError("policy 'ppo' needs Stable-Baselines3: pip install -e '.[rl]'")
     policy_entry(text)
     return text
 
@@ -75,7 +77,7 @@ def predictor_spec(text: str) -> str:
 def policies_help() -> str:
     """The `--policies` help text: every name accepted now, and the plug-in forms."""
     return (
-        f"comma-separated policies (default: {', '.join(POLICIES)}; 'ppo' needs the 'rl' extra)."
+        f"comma-separated policies (default: {', '.join(POLICIES)})."
         f" Names: {', '.join(policy_names())};"
         " also 'pkg.module:attr' (a policy class with config_class, or a factory(scenario=, dt=)),"
         " installed entry points of the group 'crossing_env.policies', and 'sb3:path/model.zip'"

@@ -97,23 +97,23 @@ def model_files(policies: Sequence[str], predictors: Sequence[str]) -> list[Path
                 files.append(WEIGHTS_DIR / f"{model}_all.pt")
         elif name != "none" and Path(name).is_file():
             files.append(Path(name))
+    from agents.registry import SHIPPED_POLICIES
+
     for spec in policies:
         path: Path | None = None
-        if spec == "ppo":
-            from agents.registry import SHIPPED_PPO
-
-            path = SHIPPED_PPO
-        elif spec.startswith("sb3:"):
-            path = Path(spec[len("sb3:") :])
+        if spec in SHIPPED_POLICIES:
+            path = SHIPPED_POLICIES[spec]  # one file: weights and statistics together
         elif spec.startswith("mlp:"):
             path = Path(spec[len("mlp:") :])
-        if path is not None and path.is_file():
-            files.append(path)
+        elif spec.startswith("sb3:"):
+            path = Path(spec[len("sb3:") :])
             from agents.sb3 import stats_path
 
-            stats = stats_path(path)  # the statistics file the policy loads, if any
+            stats = stats_path(path)  # the statistics file the SB3 policy loads, if any
             if stats.is_file():
                 files.append(stats)
+        if path is not None and path.is_file():
+            files.append(path)
     return list(dict.fromkeys(files))
 
 

@@ -368,6 +368,30 @@ def render_body(data: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def ship(runs: Path, chosen: dict[str, int]) -> dict[str, str]:
+    """Copy each learner's chosen ``model.policy.npz`` into ``agents/weights`` and rewrite the manifest.
+
+    ``ppo_lagrangian.npz`` and ``ppo_shielded.npz`` are the shipped policies of `agents.registry`; the
+    manifest holds the sha256 of every file there. Returns the new manifest.
+    """
+    import hashlib
+    import shutil
+
+    from agents.registry import SHIPPED_MANIFEST, SHIPPED_POLICIES
+
+    names = {"ppo_lagrangian": "ppo_lagrangian", "shielded": "ppo_shielded"}
+    for algo, seed in chosen.items():
+        target = SHIPPED_POLICIES[names[algo]]
+        shutil.copyfile(runs / algo / f"seed_{seed}" / "model.policy.npz", target)
+    manifest = {
+        p.name: hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(SHIPPED_POLICIES.values())
+        if p.is_file()
+    }
+    SHIPPED_MANIFEST.write_text(json.dumps(manifest, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    return manifest
+
+
 def main(argv: list[str] | None = None) -> int:
     """Train (unless --no-train), analyse, write the results JSON."""
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -377,6 +401,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--episodes", type=int, default=35, help="evaluation episodes per scenario and policy")
     p.add_argument("--check-episodes", type=int, default=4, help="selection episodes per scenario")
     p.add_argument("--workers", type=int, default=2, help="evaluation worker processes")
+    p.add_argument("--ship", action="store_true", help="copy the chosen policies into agents/weights")
     p.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results" / "safe_rl_measured.json")
     a = p.parse_args(argv)
     times = {} if a.no_train else train(a.runs, ALGOS, SEEDS)
@@ -384,6 +409,8 @@ def main(argv: list[str] | None = None) -> int:
     result = analyse(a.runs, a.figures, a.episodes, a.check_episodes, a.workers)
     result["new_training_wall_s"] = times
     result["analysis_wall_s"] = round(time.perf_counter() - t0, 1)
+    if a.ship:
+        result["shipped"] = ship(a.runs, {k: v["chosen_seed"] for k, v in result["learners"].items()})
     a.out.parent.mkdir(parents=True, exist_ok=True)
     a.out.write_text(json.dumps(result, indent=1, sort_keys=True) + "\n", encoding="utf-8")
     print(json.dumps(result["evaluation"], indent=1))

@@ -15,6 +15,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, settings
 
@@ -46,3 +47,26 @@ def eth_ucy_root() -> Path:
     if not root.is_dir():
         pytest.skip(f"ETH/UCY data not found at {root} (set CROSSING_DATA)")
     return root
+
+
+@pytest.fixture(scope="session")
+def sb3_zip(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """An (untrained) SB3 PPO saved with its VecNormalize statistics beside it, as the recipe saves."""
+    pytest.importorskip("stable_baselines3", reason="optional extra 'rl' not installed")
+    import gymnasium as gym
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    from crossing_env import ENV_ID
+
+    out = tmp_path_factory.mktemp("sb3")
+    venv = VecNormalize(DummyVecEnv([lambda: gym.make(ENV_ID)]))
+    venv.reset()
+    for _ in range(20):
+        venv.step(np.zeros((1, 1), np.float32))  # some statistics to save
+    model = PPO("MultiInputPolicy", venv, n_steps=32, batch_size=32, seed=0, device="cpu")
+    model.save(out / "model.zip")
+    from agents.sb3 import save_stats
+
+    save_stats(venv, out / "model.vecnormalize.npz")
+    return out / "model.zip"

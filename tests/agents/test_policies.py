@@ -289,7 +289,7 @@ def test_registry() -> None:
         "highway_rule",
     }
     assert set(BUILTIN_POLICIES) == builtin
-    assert POLICIES == (*BUILTIN_POLICIES, "ppo")
+    assert POLICIES == (*BUILTIN_POLICIES, "ppo_shielded")
     with pytest.raises(ValueError, match="unknown policy 'nope'"):
         make_policy("nope")
     with pytest.raises(ValueError, match="bogus"):

@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 pytest.importorskip("stable_baselines3")
-from agents.registry import SHIPPED_PPO
 from agents.sb3 import ModelFileError, SB3Policy, stats_candidates
 
 
@@ -39,8 +38,8 @@ def sentinel(tmp_path: Path) -> Path:
     return tmp_path / "code-ran"
 
 
-def _evil_data(sentinel: Path) -> bytes:
-    with zipfile.ZipFile(SHIPPED_PPO) as z:
+def _evil_data(model: Path, sentinel: Path) -> bytes:
+    with zipfile.ZipFile(model) as z:
         data = json.loads(z.read("data"))
     blob = base64.b64encode(pickle.dumps(_Payload(sentinel))).decode()
     for key in [k for k, v in data.items() if isinstance(v, dict) and ":serialized:" in v]:
@@ -52,25 +51,27 @@ def _fresh(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(SB3Policy, "_CACHE", {})
 
 
-def test_crafted_pickled_entries_in_a_zip_are_never_unpickled(tmp_path, sentinel, monkeypatch) -> None:
+def test_crafted_pickled_entries_in_a_zip_are_never_unpickled(
+    sb3_zip, tmp_path, sentinel, monkeypatch
+) -> None:
     _fresh(monkeypatch)
-    evil = _copy_zip(SHIPPED_PPO, tmp_path / "evil.zip", {"data": _evil_data(sentinel)})
+    evil = _copy_zip(sb3_zip, tmp_path / "evil.zip", {"data": _evil_data(sb3_zip, sentinel)})
     pol = SB3Policy(evil)  # loads: every pickled entry is replaced, none is unpickled
     assert not sentinel.exists()
-    shipped = SB3Policy(SHIPPED_PPO)
-    obs = {k: np.zeros(s.shape, np.float32) for k, s in shipped.model.observation_space.spaces.items()}
+    original = SB3Policy(sb3_zip)
+    obs = {k: np.zeros(s.shape, np.float32) for k, s in original.model.observation_space.spaces.items()}
     assert np.array_equal(
-        pol.model.predict(obs, deterministic=True)[0], shipped.model.predict(obs, deterministic=True)[0]
+        pol.model.predict(obs, deterministic=True)[0], original.model.predict(obs, deterministic=True)[0]
     )
 
 
-def test_crafted_weights_in_a_zip_fail_clearly(tmp_path, sentinel, monkeypatch) -> None:
+def test_crafted_weights_in_a_zip_fail_clearly(sb3_zip, tmp_path, sentinel, monkeypatch) -> None:
     import torch
 
     _fresh(monkeypatch)
     buf = io.BytesIO()
     torch.save({"x": _Payload(sentinel)}, buf)
-    evil = _copy_zip(SHIPPED_PPO, tmp_path / "evil.zip", {"policy.pth": buf.getvalue()})
+    evil = _copy_zip(sb3_zip, tmp_path / "evil.zip", {"policy.pth": buf.getvalue()})
     with pytest.raises(ModelFileError, match=r"evil\.zip: cannot load"):
         SB3Policy(evil)
     assert not sentinel.exists()
@@ -85,18 +86,18 @@ def test_not_a_model_is_a_clear_error(tmp_path, monkeypatch) -> None:
 
 
 @pytest.mark.parametrize("name", ["model.vecnormalize.pkl", "vec_normalize.pkl"])
-def test_pickled_statistics_are_never_loaded(tmp_path, sentinel, monkeypatch, name: str) -> None:
+def test_pickled_statistics_are_never_loaded(sb3_zip, tmp_path, sentinel, monkeypatch, name: str) -> None:
     _fresh(monkeypatch)
-    model = _copy_zip(SHIPPED_PPO, tmp_path / "model.zip", {})
+    model = _copy_zip(sb3_zip, tmp_path / "model.zip", {})
     (tmp_path / name).write_bytes(pickle.dumps(_Payload(sentinel)))
     with pytest.raises(ModelFileError, match=r"pickled statistics are never loaded"):
         SB3Policy(model)
     assert not sentinel.exists()
 
 
-def test_crafted_npz_statistics_fail_clearly(tmp_path, sentinel, monkeypatch) -> None:
+def test_crafted_npz_statistics_fail_clearly(sb3_zip, tmp_path, sentinel, monkeypatch) -> None:
     _fresh(monkeypatch)
-    model = _copy_zip(SHIPPED_PPO, tmp_path / "model.zip", {})
+    model = _copy_zip(sb3_zip, tmp_path / "model.zip", {})
     np.savez(
         stats_candidates(model)[0],
         norm_obs=np.array(True),
@@ -108,9 +109,9 @@ def test_crafted_npz_statistics_fail_clearly(tmp_path, sentinel, monkeypatch) ->
 
 
 @pytest.mark.parametrize("name", ["model.vecnormalize.npz", "vec_normalize.npz"])
-def test_both_statistics_names_are_found_and_reported(tmp_path, monkeypatch, name: str) -> None:
+def test_both_statistics_names_are_found_and_reported(sb3_zip, tmp_path, monkeypatch, name: str) -> None:
     _fresh(monkeypatch)
-    model = _copy_zip(SHIPPED_PPO, tmp_path / "model.zip", {})
-    (tmp_path / name).write_bytes(stats_candidates(SHIPPED_PPO)[0].read_bytes())
+    model = _copy_zip(sb3_zip, tmp_path / "model.zip", {})
+    (tmp_path / name).write_bytes(stats_candidates(sb3_zip)[0].read_bytes())
     pol = SB3Policy(model)
     assert pol.stats is not None and pol.stats_file == tmp_path / name

@@ -20,29 +20,6 @@ PLUGIN = "tests.crossing_eval.plugin_policies"
 ARGS = ["--scenarios", "zebra_case1", "--episodes", "2", "--no-progress"]
 
 
-@pytest.fixture(scope="module")
-def sb3_zip(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """An (untrained) SB3 PPO saved with its VecNormalize statistics beside it, as the recipe saves."""
-    pytest.importorskip("stable_baselines3", reason="optional extra 'rl' not installed")
-    import gymnasium as gym
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
-
-    from crossing_env import ENV_ID
-
-    out = tmp_path_factory.mktemp("sb3")
-    venv = VecNormalize(DummyVecEnv([lambda: gym.make(ENV_ID)]))
-    venv.reset()
-    for _ in range(20):
-        venv.step(np.zeros((1, 1), np.float32))  # some statistics to save
-    model = PPO("MultiInputPolicy", venv, n_steps=32, batch_size=32, seed=0, device="cpu")
-    model.save(out / "model.zip")
-    from agents.sb3 import save_stats
-
-    save_stats(venv, out / "model.vecnormalize.npz")
-    return out / "model.zip"
-
-
 def test_module_attr_factory_and_class_protocol():
     from tests.crossing_eval.plugin_policies import Coast
 
@@ -77,7 +54,15 @@ def test_register_policy_and_entry_points(monkeypatch):
 
 def test_help_lists_the_names():
     text = " ".join(build_parser().format_help().split())
-    for name in ("yielding", "constant_speed", "always_cautious", "ppo", "pkg.module:attr", "sb3:"):
+    for name in (
+        "yielding",
+        "constant_speed",
+        "always_cautious",
+        "ppo_shielded",
+        "pkg.module:attr",
+        "sb3:",
+        "mlp:",
+    ):
         assert name in text
 
 

@@ -9,7 +9,6 @@ import pytest
 
 import agents.registry as registry
 import crossing_eval.cli as cli
-from agents.sb3 import ModelFileError
 from crossing_eval.outputs import file_slug
 
 PLUGIN = "tests.crossing_eval.plugin_policies"
@@ -54,16 +53,16 @@ def test_plugin_with_a_no_argument_constructor_runs(tmp_path: Path) -> None:
 
 def test_tampered_shipped_policy_is_refused(tmp_path: Path, monkeypatch) -> None:
     weights = tmp_path / "weights"
-    shutil.copytree(registry.SHIPPED_PPO.parent, weights)
-    monkeypatch.setattr(registry, "SHIPPED_PPO", weights / "ppo.zip")
+    shutil.copytree(registry.WEIGHTS_DIR, weights)
+    monkeypatch.setattr(registry, "WEIGHTS_DIR", weights)
     monkeypatch.setattr(registry, "SHIPPED_MANIFEST", weights / "manifest.json")
     monkeypatch.setattr(registry, "_VERIFIED", set())
     registry.verify_shipped_policy_files()  # the copy is intact
     monkeypatch.setattr(registry, "_VERIFIED", set())
-    data = bytearray((weights / "ppo.vecnormalize.npz").read_bytes())
+    data = bytearray((weights / "ppo_shielded.npz").read_bytes())
     data[-1] ^= 1
-    (weights / "ppo.vecnormalize.npz").write_bytes(bytes(data))
-    with pytest.raises(ModelFileError, match=r"ppo\.vecnormalize\.npz.*manifest"):
+    (weights / "ppo_shielded.npz").write_bytes(bytes(data))
+    with pytest.raises(registry.ShippedPolicyError, match=r"ppo_shielded\.npz.*manifest"):
         registry.verify_shipped_policy_files()
 
 

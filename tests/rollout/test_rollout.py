@@ -96,8 +96,6 @@ def test_evaluation_runs_the_same_loop() -> None:
 
 def test_policy_protocol() -> None:
     for name in policy_names():
-        if name == "ppo":
-            continue
         assert isinstance(make_policy(name), Policy), name
     adapted = as_policy(lambda obs: 0.5)
     assert isinstance(adapted, FunctionPolicy) and isinstance(adapted, Policy)
