@@ -115,6 +115,19 @@ def _render_discrimination(data: dict[str, Any]) -> str:
     return render_body(data)
 
 
+def _measure_intention() -> dict[str, Any]:
+    """`benchmarks/intention.py` at its defaults (12 episodes per world, seeds 1000..1011), in process."""
+    from benchmarks.intention import evaluate
+
+    return evaluate()
+
+
+def _render_intention(data: dict[str, Any]) -> str:
+    from benchmarks.intention import render_body
+
+    return render_body(data)
+
+
 @dataclass(frozen=True)
 class Entry:
     """One registered result: how it is measured, where its JSON lives, where it is rendered."""
@@ -154,6 +167,13 @@ ENTRIES: dict[str, Entry] = {
             _measure_discrimination,
             _render_discrimination,
             REPO / "docs" / "scenario_discrimination.md",
+        ),
+        Entry(
+            "intention",
+            "slow",
+            _measure_intention,
+            _render_intention,
+            REPO / "predictors" / "INTENTION_RESULTS.md",
         ),
     )
 }
