@@ -27,6 +27,7 @@ from crossing_env.observation import (
     CROSSING_INTENT_KEY,
     CROSSING_INTENTION_KEY,
     EGO_KEY,
+    HISTORY_INTERVAL,
     PEDESTRIAN_HISTORY_KEY,
     PEDESTRIANS_KEY,
     VEHICLES_KEY,
@@ -123,8 +124,8 @@ def intent_features(obs: dict[str, np.ndarray], road_map: RoadMap) -> np.ndarray
     gap = np.minimum(tta.min(axis=1), CAP)
     hy = hist[:, :, PointColumn.Y]
     was_on_road = ((hy > lo) & (hy < hi)).any(axis=1).astype(np.float64)
-    span = max(hist.shape[1] - 1, 1) * 0.4
-    moved = hy[:, -1] - hy[:, 0]
+    span = max(hist.shape[1] - 1, 1) * HISTORY_INTERVAL
+    moved = hist[:, -1, PointColumn.Y] - hist[:, 0, PointColumn.Y]
     history_towards = np.clip(np.where(south, moved, -moved) / span, -3.0, 3.0)
     columns = (
         kerb_offset,
