@@ -21,10 +21,10 @@ variant lets a confident prediction *release* it, within the law, and trusts pre
   sidewalk; and not at a signalised crossing that shows the car green, where people wait for their own
   signal. Such a pedestrian is also anticipated to walk straight into the road in the conflict check,
   except at a zebra ahead, where the legal yield already holds the car (with its offer timeout). The
-  intent to cross at all (``crossing_intent``, the oracle's) only releases: it says who will cross, not
-  when, and anticipating a walk-in from it held the car in front of people waiting for their green or
-  for a gap in the far lanes (dev grid runs: signalised_red_light 1.0 → 8.1 s, four_lane_arterial pass
-  rate 1.00 → 0.36).
+  intent to cross at all (the oracle's values, which carry no release bound) only releases: it says who
+  will cross, not when, and anticipating a walk-in from it held the car in front of people waiting for
+  their green or for a gap in the far lanes (dev grid runs: signalised_red_light 1.0 → 8.1 s,
+  four_lane_arterial pass rate 1.00 → 0.36).
 - **Paths instead of constant velocity.** Where ``predicted_paths`` exist, the conflict check uses them,
   and constant velocity only as a guard for pedestrians it puts in the ego's corridor within
   `constant_velocity_guard` seconds (paths built from 0.4 s histories lag a child who starts to run: a
@@ -87,10 +87,12 @@ class PredictiveYielding(YieldingPolicy):
 
     def _likely_to_cross(self, view: View, kerb_gap: np.ndarray) -> np.ndarray:
         cfg = self.config
-        if view.intent is not None:
-            # The intent to cross at all says who will cross, not when: it releases (below) but does not
-            # anticipate a walk-in now (a dev grid run that did stopped the car for pedestrians waiting for
-            # their own green: signalised_red_light delay 1.0 → 8.1 s).
+        if view.intent is not None and self._bound is None:
+            # The oracle's ``crossing_intention`` is its intent to cross at all, which says who will cross,
+            # not when: it releases (below) but does not anticipate a walk-in now (a dev grid run that did
+            # stopped the car for pedestrians waiting for their own green: signalised_red_light delay 1.0 →
+            # 8.1 s). A real predictor (one that publishes a release bound) gives a near-term estimate there,
+            # which anticipates as without ``crossing_intent``.
             return np.zeros_like(view.present)
         near_kerb = kerb_gap <= cfg.anticipation_kerb_distance
         # At a signalised crossing showing the car green, people at the kerb wait for their own green:
