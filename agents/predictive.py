@@ -3,25 +3,28 @@
 `YieldingPolicy` only ever adds caution from a prediction, so no prediction can make it faster. This
 variant lets a confident prediction *release* it, within the law, and trusts predicted paths:
 
-- **Release.** A pedestrian by the kerb whose ``crossing_intent`` (the predicted intent to cross at all)
-  is at most `release_threshold` is not yielded to as "waiting to cross", unless the legal duty is
-  visible in the observation: the pedestrian is on the zebra (or the road), or is stepping towards the
-  road (speed towards it above `stepping_speed` within `kerb_distance` of the kerb). The duty of UK rule
-  195 / StVO §26 is to people who (recognisably) want to cross; a bystander at a bus stop is not one.
-  The near-term ``crossing_intention`` of the QLB and classical wrappers never releases: it estimates
-  "on the road ahead within 2 s", which is low for a pedestrian who waits *because* the car is coming
-  (measured: median 0.09 classical / 0.02 QLB for waiting pedestrians who do cross, against 0.70 / 0.73
-  for pedestrians standing at the kerb who do not), and releasing on it broke 12 % of yield obligations
-  in a first grid run. Today only the oracle supplies ``crossing_intent``.
+- **Release.** A pedestrian by the kerb whose ``crossing_intent`` (the predicted probability of being on
+  the road within 10 s: the intent to cross here) is at most the predictor's risk bound is not yielded
+  to as "waiting to cross", unless the legal duty is visible in the observation: the pedestrian is on
+  the zebra (or the road), or is stepping towards the road (speed towards it above `stepping_speed`
+  within `kerb_distance` of the kerb). The duty of UK rule 195 / StVO §26 is to people who
+  (recognisably) want to cross; a bystander at a bus stop is not one. The bound is the predictor's own
+  ``crossing_intent_bound`` when it publishes one (the learned, QLB and classical wrappers do: chosen on
+  their training seeds so that at most 1 % of the people who do cross are ever released while they
+  stand at the kerb), else `release_threshold` (the oracle, whose intent is 0, 0.5 or 1). The
+  near-term ``crossing_intention`` never releases: it estimates "on the road ahead within 2 s", which
+  is low for a pedestrian who waits *because* the car is coming (measured: median 0.09 classical / 0.02
+  QLB for waiting pedestrians who do cross, against 0.70 / 0.73 for pedestrians standing at the kerb
+  who do not), and releasing on it broke 12 % of yield obligations in a first grid run.
 - **Caution where it is due.** A pedestrian the near-term estimate expects to cross is treated as
   waiting only within `anticipation_kerb_distance` of the kerb: standing at it, not walking up the
   sidewalk; and not at a signalised crossing that shows the car green, where people wait for their own
   signal. Such a pedestrian is also anticipated to walk straight into the road in the conflict check,
   except at a zebra ahead, where the legal yield already holds the car (with its offer timeout). The
-  intent to cross at all (``crossing_intent``, the oracle's) only releases: it says who will cross, not
-  when, and anticipating a walk-in from it held the car in front of people waiting for their green or
-  for a gap in the far lanes (dev grid runs: signalised_red_light 1.0 → 8.1 s, four_lane_arterial pass
-  rate 1.00 → 0.36).
+  intent to cross at all (the oracle's values, which carry no release bound) only releases: it says who
+  will cross, not when, and anticipating a walk-in from it held the car in front of people waiting for
+  their green or for a gap in the far lanes (dev grid runs: signalised_red_light 1.0 → 8.1 s,
+  four_lane_arterial pass rate 1.00 → 0.36).
 - **Paths instead of constant velocity.** Where ``predicted_paths`` exist, the conflict check uses them,
   and constant velocity only as a guard for pedestrians it puts in the ego's corridor within
   `constant_velocity_guard` seconds (paths built from 0.4 s histories lag a child who starts to run: a
@@ -40,8 +43,9 @@ from typing import ClassVar
 import numpy as np
 
 from agents.config import PredictiveYieldingConfig
-from agents.view import View
+from agents.view import ObsLike, View
 from agents.yielding import YieldingPolicy
+from predictors.learned_intent_weights import CROSSING_INTENT_BOUND_KEY
 
 
 class PredictiveYielding(YieldingPolicy):
@@ -54,6 +58,26 @@ class PredictiveYielding(YieldingPolicy):
     def __init__(self, config: PredictiveYieldingConfig | None = None) -> None:
         super().__init__(config or PredictiveYieldingConfig())
         self.config: PredictiveYieldingConfig
+        self._bound: np.ndarray | None = None
+
+    def _read_bound(self, obs: ObsLike) -> None:
+        """Keep the predictor's release bound (B, 1) of this observation, if it publishes one."""
+        bound = obs.get(CROSSING_INTENT_BOUND_KEY) if hasattr(obs, "get") else None
+        self._bound = None if bound is None else np.asarray(bound, dtype=np.float64).reshape(-1, 1)
+
+    def release_bound(self) -> np.ndarray | float:
+        """The release threshold in force: the predictor's published bound, else `release_threshold`."""
+        return self.config.release_threshold if self._bound is None else self._bound
+
+    def acceleration(self, obs: ObsLike) -> np.ndarray:
+        """Commanded acceleration (m/s²) of shape (B,); reads the predictor's release bound first."""
+        self._read_bound(obs)
+        return super().acceleration(obs)
+
+    def __call__(self, obs: ObsLike) -> np.ndarray:
+        """Normalised action(s); reads the predictor's release bound first."""
+        self._read_bound(obs)
+        return super().__call__(obs)
 
     def _visible_duty(self, view: View, kerb_gap: np.ndarray) -> np.ndarray:
         """(B, K) pedestrians whose wish to cross the car can see: on the road, or stepping towards it."""
@@ -63,10 +87,12 @@ class PredictiveYielding(YieldingPolicy):
 
     def _likely_to_cross(self, view: View, kerb_gap: np.ndarray) -> np.ndarray:
         cfg = self.config
-        if view.intent is not None:
-            # The intent to cross at all says who will cross, not when: it releases (below) but does not
-            # anticipate a walk-in now (a dev grid run that did stopped the car for pedestrians waiting for
-            # their own green: signalised_red_light delay 1.0 → 8.1 s).
+        if view.intent is not None and self._bound is None:
+            # The oracle's ``crossing_intention`` is its intent to cross at all, which says who will cross,
+            # not when: it releases (below) but does not anticipate a walk-in now (a dev grid run that did
+            # stopped the car for pedestrians waiting for their own green: signalised_red_light delay 1.0 →
+            # 8.1 s). A real predictor (one that publishes a release bound) gives a near-term estimate there,
+            # which anticipates as without ``crossing_intent``.
             return np.zeros_like(view.present)
         near_kerb = kerb_gap <= cfg.anticipation_kerb_distance
         # At a signalised crossing showing the car green, people at the kerb wait for their own green:
@@ -89,5 +115,5 @@ class PredictiveYielding(YieldingPolicy):
         waiting = super()._yield_waiting(view, waiting, likely, kerb_gap)
         if view.intent is None or not self.config.use_predictions:
             return waiting
-        released = (view.intent <= self.config.release_threshold) & ~self._visible_duty(view, kerb_gap)
+        released = (view.intent <= self.release_bound()) & ~self._visible_duty(view, kerb_gap)
         return waiting & ~released

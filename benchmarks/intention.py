@@ -1,18 +1,24 @@
-"""Benchmark the crossing-intention wrappers (QLB, CBM, constant base rate) against ground-truth crossings.
+"""Benchmark the crossing-intention predictors against ground truth: Brier, AUC and calibration (ECE).
 
-Runs episodes with a fixed seed set, a busy zebra (spawn_rate 20/min) in two worlds (classical "gap"
-pedestrians and QLB "qlb" pedestrians), with a simple cautious ego that reads only the observation. Every
-(step, present pedestrian slot) is a sample; its label for horizon h is whether that pedestrian, per
-``info["ground_truth"]``, is on the carriageway ahead of the ego's rear at some step in [t, t + h]. Slots
-are matched to pedestrians with ``env.unwrapped._observer.last_slots`` and the world's pedestrian ids.
-Samples whose window runs past the end of the episode are dropped unless already positive.
+Runs `EPISODES` episodes (seeds 1000 onwards, disjoint from the training seeds of the learned model) in
+three worlds: the default road with spawn_rate 20/min and classical ("gap") pedestrians, the same with QLB
+("qlb") pedestrians, and the built-in ``busy_zebra``; the ego is `cautious_action` (observation only; it
+stops for anyone waiting at the kerb). Every (step, present pedestrian slot) is a sample
+(`predictors.learned_intent_train.collect_episode`). Targets: for h = 1, 2, 4 s, whether ground truth has
+the pedestrian on the carriageway ahead of the ego's rear at some step in [t, t + h] (what
+``crossing_intention`` estimates); and "intent", whether it is on the carriageway anywhere within 10 s
+(what ``crossing_intent`` estimates, the release signal). Samples whose window runs past the episode's end
+are dropped unless already positive.
 
-Prints Brier score (lower is better) and ROC AUC (higher is better) per horizon for QLB, CBM and a constant
-equal to the pooled base rate (an in-sample oracle constant: AUC 0.5, Brier p(1-p)), over all samples and
-over the "not yet on the road" samples (the ones that need a prediction).
+Models: the base rate (the evaluated samples' own pooled positive rate: an in-sample constant), the rule
+baseline (at the kerb and not walking away: its training-seed rate), the learned logistic model, the
+classical and QLB models (near-term as published; intent Platt-calibrated), and the oracle (the true
+intent, 0.5 while undecided; the same value for every target). Intervals: 95 % percentile bootstrap over
+whole episodes (`DRAWS` draws; samples within an episode are correlated), also for the paired difference
+of each model's Brier score from the base rate's.
 
-    python -m benchmarks.intention                        # default: 12 seeds per world, about 2 minutes
-    python -m benchmarks.intention --episodes 4 --write predictors/INTENTION_RESULTS.md
+    python -m benchmarks.intention                    # print the tables (about 3 minutes on 2 cores)
+    python -m benchmarks.results intention            # measure into the registry and render
 """
 
 from __future__ import annotations
@@ -20,202 +26,249 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from dataclasses import replace
-from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-from crossing_common.files import write_text_atomic
-from crossing_env.env import CrossingEnv
-from crossing_env.observation import (
-    CROSSING_INTENTION_KEY,
-    EGO_KEY,
-    PEDESTRIANS_KEY,
-    EgoColumn,
-    PedestrianColumn,
+from predictors.learned_intent import predict
+from predictors.learned_intent_train import (
+    EVAL_SEEDS,
+    benchmark_worlds,
+    cautious_action,
+    collect,
+    rule_predict,
 )
-from predictors.intention import ClassicalIntention, QLBIntention
-from scenarios import load_scenario
-from scenarios.config import BehaviourConfig, PedestrianConfig, ScenarioConfig
+from predictors.learned_intent_weights import WEIGHTS_PATH, platt, sha256_bytes, shipped_weights
 
-HORIZONS = (1.0, 2.0, 4.0)
+__all__ = ["brier", "cautious_action", "ece", "evaluate", "render_body", "roc_auc"]
 
-
-def cautious_action(obs: dict[str, np.ndarray], target_speed: float = 5.0) -> np.ndarray:
-    """A simple ego: cruise at `target_speed`, brake for pedestrians on the road or waiting at the kerb ahead.
-
-    Reads the observation only. Yielding to waiting pedestrians makes crossings in front of the ego common,
-    which is what the benchmark needs to score.
-    """
-    ped = obs[PEDESTRIANS_KEY]
-    speed = float(obs[EGO_KEY][EgoColumn.SPEED])
-    c = PedestrianColumn
-    dx, dy = ped[:, c.DX], ped[:, c.DY]
-    near = (ped[:, c.PRESENCE] > 0.5) & (dx > 0.0) & (dx < 25.0) & (np.abs(dy) < 9.0)
-    if np.any(near & ((ped[:, c.ON_ROAD] > 0.5) | (ped[:, c.WAITING] > 0.5))):
-        return np.array([-0.4 if speed > 0.5 else 0.0], dtype=np.float32)
-    return np.array([np.clip((target_speed - speed) / 3.0, -1.0, 1.0)], dtype=np.float32)
+TARGETS = ("1", "2", "4", "intent")
+"""Near-term horizons (s) and the intent target."""
+MODELS = ("base rate", "rule", "learned", "classical", "QLB", "oracle")
+"""Rows of each table, in order."""
+SUBSETS = ("all", "not on road")
+"""All samples, and those whose pedestrian is not yet on the road (the ones that need a prediction)."""
+EPISODES = 12
+"""Default episodes (seeds) per world."""
+SEED = 1000
+"""Default first evaluation seed."""
+DRAWS = 300
+"""Bootstrap draws."""
+BINS = 10
+"""Equal-width probability bins of the ECE."""
 
 
-def roc_auc(scores: np.ndarray, labels: np.ndarray) -> float:
-    """ROC AUC by the rank-sum (Mann-Whitney) statistic, ties counted as one half."""
-    pos = labels.astype(bool)
-    n_pos, n_neg = int(pos.sum()), int((~pos).sum())
-    if n_pos == 0 or n_neg == 0:
+def roc_auc(scores: np.ndarray, labels: np.ndarray, weights: np.ndarray | None = None) -> float:
+    """ROC AUC (the Mann-Whitney statistic, ties counted one half), optionally with sample weights."""
+    _, inverse = np.unique(np.asarray(scores, dtype=np.float64), return_inverse=True)
+    return _auc(inverse, labels.astype(bool), weights)
+
+
+def _auc(inverse: np.ndarray, pos: np.ndarray, weights: np.ndarray | None) -> float:
+    w = np.ones(pos.size) if weights is None else weights
+    n = int(inverse.max(initial=-1)) + 1
+    p = np.bincount(inverse, weights=w * pos, minlength=n)
+    q = np.bincount(inverse, weights=w * ~pos, minlength=n)
+    total_p, total_q = p.sum(), q.sum()
+    if total_p <= 0.0 or total_q <= 0.0:
         return float("nan")
-    order = np.argsort(scores, kind="mergesort")
-    ranks = np.empty(scores.size)
-    sorted_scores = scores[order]
-    # Average ranks over ties.
-    _, first, counts = np.unique(sorted_scores, return_index=True, return_counts=True)
-    avg = first + (counts - 1) / 2.0 + 1.0
-    ranks[order] = np.repeat(avg, counts)
-    return float((ranks[pos].sum() - n_pos * (n_pos + 1) / 2.0) / (n_pos * n_neg))
+    below = np.cumsum(q) - q
+    return float((p * (below + 0.5 * q)).sum() / (total_p * total_q))
 
 
-def brier(scores: np.ndarray, labels: np.ndarray) -> float:
-    """Mean squared error of probabilities against 0/1 labels."""
-    return float(np.mean((scores - labels) ** 2))
+def brier(scores: np.ndarray, labels: np.ndarray, weights: np.ndarray | None = None) -> float:
+    """Mean squared error of probabilities against 0/1 labels (optionally weighted)."""
+    return float(np.average((scores - labels) ** 2, weights=weights))
 
 
-def paired_bootstrap(
-    q: np.ndarray,
-    c: np.ndarray,
-    y: np.ndarray,
-    episode: np.ndarray,
-    episodes: int,
-    seed: int,
-    draws: int = 2000,
-) -> tuple[float, float]:
-    """95 % interval of Brier(q) - Brier(c), resampling whole episodes (samples within one are correlated)."""
-    diff = np.bincount(episode, weights=(q - y) ** 2 - (c - y) ** 2, minlength=episodes)
-    count = np.bincount(episode, minlength=episodes).astype(np.float64)
+def ece(scores: np.ndarray, labels: np.ndarray, weights: np.ndarray | None = None, bins: int = BINS) -> float:
+    """Expected calibration error: sum over equal-width bins of (bin share) × |mean score − mean label|."""
+    w = np.ones(scores.size) if weights is None else weights
+    b = np.minimum((np.asarray(scores) * bins).astype(int), bins - 1)
+    gap = np.bincount(b, weights=w * (scores - labels), minlength=bins)
+    return float(np.abs(gap).sum() / w.sum())
+
+
+def _predictions(d: dict[str, np.ndarray], target: str, weights: dict[str, Any]) -> dict[str, np.ndarray]:
+    """Every model's probabilities for one target on the samples of `d`."""
+    feats = d["features"]
+    if target == "intent":
+        cbm = platt(d["cbm_intent_raw"], weights["calibration"]["cbm"])
+        qlb = platt(d["qlb_intent_raw"], weights["calibration"]["qlb"])
+    else:
+        cbm, qlb = d[f"cbm_{target}"], d[f"qlb_{target}"]
+    return {
+        "rule": rule_predict(feats, d["on_road"], weights["rule_rates"][target]),
+        "learned": predict(feats, weights["heads"][target]),
+        "classical": np.asarray(cbm, dtype=np.float64),
+        "QLB": np.asarray(qlb, dtype=np.float64),
+        "oracle": d["oracle"].astype(np.float64),
+    }
+
+
+def _row(
+    preds: dict[str, np.ndarray], y: np.ndarray, episode: np.ndarray, episodes: int, seed: int
+) -> dict[str, Any]:
+    """Point values and bootstrap intervals of every model on one (world, subset, target).
+
+    A bootstrap draw weights each episode by how often it was drawn, so every statistic is computed from
+    per-episode sums (of squared errors, of calibration gaps per bin, of positives and negatives per score).
+    """
+    rate = float(y.mean()) if y.size else float("nan")
+    preds = {"base rate": np.full(y.size, rate), **preds}
+    pos = y.astype(bool)
     rng = np.random.default_rng(seed)
-    pick = rng.integers(0, episodes, size=(draws, episodes))
-    stats = diff[pick].sum(axis=1) / np.maximum(count[pick].sum(axis=1), 1.0)
-    lo, hi = np.percentile(stats, [2.5, 97.5])
-    return float(lo), float(hi)
-
-
-def run_episode(scenario: ScenarioConfig, seed: int) -> dict[str, np.ndarray]:
-    """One episode: per (step, present slot) predictions of both variants at every horizon and the labels."""
-    env = CrossingEnv(scenario)
-    wrappers = {
-        (name, h): cls(env, horizon=h)
-        for name, cls in (("QLB", QLBIntention), ("CBM", ClassicalIntention))
-        for h in HORIZONS
-    }
-    obs, info = env.reset(seed=seed)
-    dt = env.config.dt
-    rows: list[tuple[int, int]] = []  # (step, pedestrian id)
-    preds: dict[tuple[str, float], list[np.ndarray]] = {key: [] for key in wrappers}
-    on_road_obs: list[np.ndarray] = []
-    events: dict[int, list[int]] = {}  # id -> steps at which it is on the road ahead of the ego's rear
-    step = 0
-    while True:
-        world = env.unwrapped.world
-        slots = env.unwrapped._observer.last_slots
-        present = slots >= 0
-        ids = world.pedestrians.ids[slots[present]]
-        rows.extend((step, int(i)) for i in ids)
-        on_road_obs.append(obs[PEDESTRIANS_KEY][present, PedestrianColumn.ON_ROAD] > 0.5)
-        for key, wrapper in wrappers.items():
-            preds[key].append(wrapper.observation(obs)[CROSSING_INTENTION_KEY][present])
-        gt = info["ground_truth"]
-        rear = gt.ego_position[0] - gt.ego_size[0] / 2
-        hit = gt.on_road & (gt.pedestrian_positions[:, 0] > rear)
-        for pid in gt.pedestrian_ids[hit]:
-            events.setdefault(int(pid), []).append(step)
-        obs, _, terminated, truncated, info = env.step(cautious_action(obs))
-        step += 1
-        if terminated or truncated:
-            break
-    last = step - 1
-    steps = np.array([r[0] for r in rows])
-    pids = np.array([r[1] for r in rows])
-    out: dict[str, np.ndarray] = {
-        "on_road": np.concatenate(on_road_obs) if on_road_obs else np.zeros(0, bool)
-    }
-    for h in HORIZONS:
-        k = round(h / dt)
-        label = np.zeros(steps.size, dtype=bool)
-        for j, (s, pid) in enumerate(zip(steps, pids, strict=True)):
-            ev = events.get(int(pid))
-            if ev:
-                e = np.asarray(ev)
-                label[j] = bool(np.any((e >= s) & (e <= s + k)))
-        keep = label | (steps + k <= last)
-        out[f"label_{h}"] = label
-        out[f"keep_{h}"] = keep
-        for name in ("QLB", "CBM"):
-            out[f"{name}_{h}"] = np.concatenate(preds[(name, h)]) if preds[(name, h)] else np.zeros(0)
-    env.close()
+    counts = np.stack(
+        [np.bincount(rng.integers(0, episodes, episodes), minlength=episodes) for _ in range(DRAWS)]
+    )
+    counts = counts.astype(np.float64)  # (D, E)
+    n_e = np.bincount(episode, minlength=episodes).astype(np.float64)
+    base_sq = (preds["base rate"] - y) ** 2
+    out: dict[str, Any] = {"samples": int(y.size), "positives": int(pos.sum()), "models": {}}
+    for m, p in preds.items():
+        sq = (p - y) ** 2
+        bins = np.minimum((p * BINS).astype(int), BINS - 1)
+        _, inv = np.unique(p, return_inverse=True)
+        u = int(inv.max(initial=-1)) + 1
+        sq_e = np.bincount(episode, weights=sq, minlength=episodes)
+        diff_e = np.bincount(episode, weights=sq - base_sq, minlength=episodes)
+        gap_e = np.bincount(episode * BINS + bins, weights=p - y, minlength=episodes * BINS)
+        gap_e = gap_e.reshape(episodes, BINS)
+        pos_e = np.bincount(episode * u + inv, weights=pos, minlength=episodes * u).reshape(episodes, u)
+        neg_e = np.bincount(episode * u + inv, weights=~pos, minlength=episodes * u).reshape(episodes, u)
+        total = counts @ n_e
+        stats = [
+            counts @ sq_e / total,
+            counts @ diff_e / total,
+            np.empty(DRAWS),
+            np.abs(counts @ gap_e).sum(1) / total,
+        ]
+        for start in range(0, DRAWS, 50):
+            c = counts[start : start + 50]
+            pp, qq = c @ pos_e, c @ neg_e
+            below = np.cumsum(qq, axis=1) - qq
+            with np.errstate(invalid="ignore", divide="ignore"):
+                stats[2][start : start + 50] = (pp * (below + 0.5 * qq)).sum(1) / (pp.sum(1) * qq.sum(1))
+        point = (brier(p, y), brier(p, y) - brier(preds["base rate"], y), _auc(inv, pos, None), ece(p, y))
+        out["models"][m] = {
+            name: [float(point[i]), float(np.nanpercentile(st, 2.5)), float(np.nanpercentile(st, 97.5))]
+            for i, (name, st) in enumerate(
+                zip(("brier", "brier_minus_base", "auc", "ece"), stats, strict=True)
+            )
+        }
     return out
 
 
-def evaluate(episodes: int, seed: int) -> tuple[list[str], dict[str, float]]:
-    """Run the seed set in both worlds and format the result table (markdown lines)."""
-    base = ScenarioConfig(pedestrians=PedestrianConfig(spawn_rate=20.0))
-    worlds = {
-        "default-20/gap": base,
-        "default-20/qlb": replace(
-            base, pedestrians=replace(base.pedestrians, behaviour=BehaviourConfig(decision_model="qlb"))
-        ),
-        "busy_zebra": load_scenario("busy_zebra"),
+def evaluate(episodes: int = EPISODES, seed: int = SEED) -> dict[str, Any]:
+    """Run the seed set in every world and score every model (the registry's JSON data)."""
+    seeds = list(range(seed, seed + episodes))
+    if not set(seeds) <= set(EVAL_SEEDS):
+        raise ValueError(f"evaluation seeds must lie in {EVAL_SEEDS} (the training seeds lie outside it)")
+    weights = shipped_weights()
+    start = time.perf_counter()
+    data = collect(benchmark_worlds(), seeds)
+    results: dict[str, Any] = {}
+    for world, d in data.items():
+        for subset in SUBSETS:
+            for target in TARGETS:
+                keep = d[f"keep_{target}"] & (~d["on_road"] if subset == "not on road" else True)
+                sub = {k: v[keep] for k, v in d.items()}
+                preds = _predictions(sub, target, weights)
+                y = sub[f"label_{target}"].astype(np.float64)
+                results[f"{world}|{subset}|{target}"] = _row(preds, y, sub["episode"], episodes, seed)
+    return {
+        "command": f"python -m benchmarks.intention --episodes {episodes} --seed {seed}",
+        "episodes": episodes,
+        "seeds": [seeds[0], seeds[-1]],
+        "worlds": list(data),
+        "draws": DRAWS,
+        "weights_sha256": sha256_bytes(WEIGHTS_PATH.read_bytes()),
+        "training": weights["training"],
+        "release": weights["release"],
+        "seconds": round(time.perf_counter() - start, 1),
+        "results": results,
     }
+
+
+def _ci(v: list[float], digits: int = 3) -> str:
+    return f"{v[0]:.{digits}f} [{v[1]:.{digits}f}, {v[2]:.{digits}f}]"
+
+
+def _signed(v: list[float]) -> str:
+    return f"{v[0]:+.4f} [{v[1]:+.4f}, {v[2]:+.4f}]"
+
+
+def render_body(data: dict[str, Any]) -> str:
+    """The markdown tables from the JSON data."""
+    res = data["results"]
     lines = [
-        "| world | subset | h (s) | samples | positives | Brier QLB | Brier CBM | Brier base "
-        "| Brier QLB - CBM [95% CI] | AUC QLB | AUC CBM | AUC base |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+        f"Measured with `{data['command']}` ({data['episodes']} episodes per world, seeds"
+        f" {data['seeds'][0]}..{data['seeds'][1]}, {data['seconds']:.0f} s on 2 cores) on commit"
+        f" `{str(data.get('commit', 'unknown'))[:12]}`; learned weights sha256"
+        f" `{data['weights_sha256'][:12]}` (trained with `{data['training']['command']}`, seeds"
+        f" {data['training']['seeds'][0]}..{data['training']['seeds'][1]});"
+        " rendered from `benchmarks/results/intention.json` by `python -m benchmarks.results`."
+        f" Intervals: 95 % bootstrap over episodes ({data['draws']} draws).",
     ]
-    summary: dict[str, float] = {}
-    for wname, scenario in worlds.items():
-        results = [run_episode(scenario, seed + e) for e in range(episodes)]
-        data = {key: np.concatenate([r[key] for r in results]) for key in results[0]}
-        episode = np.concatenate([np.full(r["on_road"].size, e) for e, r in enumerate(results)])
-        for subset in ("all", "not on road"):
-            for h in HORIZONS:
-                keep = data[f"keep_{h}"] & (~data["on_road"] if subset == "not on road" else True)
-                y = data[f"label_{h}"][keep].astype(np.float64)
-                q = data[f"QLB_{h}"][keep].astype(np.float64)
-                c = data[f"CBM_{h}"][keep].astype(np.float64)
-                rate = float(y.mean()) if y.size else float("nan")
-                const = np.full(y.size, rate)
-                vals = (brier(q, y), brier(c, y), brier(const, y), roc_auc(q, y), roc_auc(c, y), 0.5)
-                lo, hi = paired_bootstrap(q, c, y, episode[keep], episodes, seed)
-                for name, v in zip(
-                    ("brier_qlb", "brier_cbm", "brier_base", "auc_qlb", "auc_cbm"), vals, strict=False
-                ):
-                    summary[f"{wname}/{subset}/{h}/{name}"] = v
+    names = {"1": "h = 1 s", "2": "h = 2 s", "4": "h = 4 s", "intent": "intent (on the road within 10 s)"}
+    for target in TARGETS:
+        lines += [
+            "",
+            f"**{names[target]}, not on road**",
+            "",
+            "| world | model | Brier | Brier − base rate | AUC | ECE |",
+            "|---|---|---|---|---|---|",
+        ]
+        for world in data["worlds"]:
+            row = res[f"{world}|not on road|{target}"]
+            for i, model in enumerate(MODELS):
+                m = row["models"][model]
+                label = f"{world} ({row['samples']} / {row['positives']})" if i == 0 else ""
                 lines.append(
-                    f"| {wname} | {subset} | {h:g} | {y.size} | {int(y.sum())} | "
-                    + " | ".join(f"{v:.4f}" for v in vals[:3])
-                    + f" | {vals[0] - vals[1]:+.4f} [{lo:+.4f}, {hi:+.4f}] | "
-                    + " | ".join(f"{v:.3f}" for v in vals[3:])
-                    + " |"
+                    f"| {label} | {model} | {_ci(m['brier'], 4)} | {_signed(m['brier_minus_base'])}"
+                    f" | {_ci(m['auc'])} | {_ci(m['ece'])} |"
                 )
-    return lines, summary
+    lines += [
+        "",
+        "**All samples (on the road included): Brier score**",
+        "",
+        "| world | target | samples / positives | " + " | ".join(MODELS) + " |",
+        "|---|---|---|" + "---|" * len(MODELS),
+    ]
+    for world in data["worlds"]:
+        for target in TARGETS:
+            row = res[f"{world}|all|{target}"]
+            cells = " | ".join(f"{row['models'][m]['brier'][0]:.4f}" for m in MODELS)
+            lines.append(f"| {world} | {names[target]} | {row['samples']} / {row['positives']} | {cells} |")
+    rel = data["release"]
+    lines += [
+        "",
+        f"**Release risk bounds** (chosen on the training seeds: the largest threshold at which at most"
+        f" {rel['max_crossers_released']:.0%} of the {rel['crossing_pedestrians']} pedestrians who cross"
+        f" within 10 s are ever released while standing by the kerb at a zebra ahead; {rel['candidates']}"
+        " candidate samples)",
+        "",
+        "| model | threshold | crossers released | non-crosser samples released |",
+        "|---|---|---|---|",
+    ]
+    for model, r in rel["models"].items():
+        lines.append(
+            f"| {model} | {r['threshold']:.3f} | {r['crossers_released']:.3f}"
+            f" | {r['non_crosser_samples_released']:.3f} |"
+        )
+    return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Print the tables (the registry entry ``intention`` stores and renders them)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--episodes", type=int, default=12, help="episodes (seeds) per world")
-    parser.add_argument("--seed", type=int, default=1000, help="first seed of the fixed seed set")
-    parser.add_argument("--write", type=Path, default=None, help="also write the table as markdown here")
+    parser.add_argument("--episodes", type=int, default=EPISODES, help="episodes (seeds) per world")
+    parser.add_argument("--seed", type=int, default=SEED, help="first seed of the fixed seed set")
     args = parser.parse_args(argv)
     if args.episodes < 1:
         print(f"error: --episodes must be >= 1, got {args.episodes}", file=sys.stderr)
         return 2
-    start = time.perf_counter()
-    lines, _ = evaluate(args.episodes, args.seed)
-    elapsed = time.perf_counter() - start
-    table = "\n".join(lines)
-    print(table)
-    seeds = f"{args.seed}..{args.seed + args.episodes - 1}"
-    print(f"\n{args.episodes} episodes per world, seeds {seeds}, {elapsed:.0f} s")
-    if args.write is not None:
-        cmd = f"python -m benchmarks.intention --episodes {args.episodes} --seed {args.seed}"
-        write_text_atomic(args.write, f"Command: `{cmd}` ({elapsed:.0f} s)\n\n{table}\n")
+    print(render_body(evaluate(args.episodes, args.seed)))
     return 0
 
 

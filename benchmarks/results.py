@@ -143,6 +143,19 @@ def _render_safe_rl(data: dict[str, Any]) -> str:
     return render_body(data)
 
 
+def _measure_intention() -> dict[str, Any]:
+    """`benchmarks/intention.py` at its defaults (12 episodes per world, seeds 1000..1011), in process."""
+    from benchmarks.intention import evaluate
+
+    return evaluate()
+
+
+def _render_intention(data: dict[str, Any]) -> str:
+    from benchmarks.intention import render_body
+
+    return render_body(data)
+
+
 @dataclass(frozen=True)
 class Entry:
     """One registered result: how it is measured, where its JSON lives, where it is rendered."""
@@ -184,6 +197,13 @@ ENTRIES: dict[str, Entry] = {
             REPO / "docs" / "scenario_discrimination.md",
         ),
         Entry("safe_rl", "slow", _measure_safe_rl, _render_safe_rl, REPO / "docs" / "rl.md"),
+        Entry(
+            "intention",
+            "slow",
+            _measure_intention,
+            _render_intention,
+            REPO / "predictors" / "INTENTION_RESULTS.md",
+        ),
     )
 }
 

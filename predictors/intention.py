@@ -28,7 +28,18 @@ The model, per slot, vectorised over slots:
    before the horizon (or before the ego has passed the pedestrian) is ``1 - exp(-rate * window)``.
 
 A pedestrian facing a red signal (signalised crossing, cars green, near the crossing) is scaled by
-``red_light_prior``. These are our modelling choices, documented here; the benchmark
+``red_light_prior``.
+
+Both wrappers also add ``"crossing_intent"`` ``(K,)``: the calibrated probability that the pedestrian is on
+the carriageway (anywhere along it, crossing or starting to) at some moment within `INTENT_HORIZON` seconds,
+the event the oracle's intent to cross stands for. It is the same model evaluated over that horizon without
+the "before the ego has passed" cut (`crossing_intention` with ``ahead_only=False``), then Platt-calibrated
+(``sigmoid(a logit(p) + b)``, the two numbers per variant fitted on the training seeds by
+``python -m predictors.learned_intent_train`` and shipped in ``predictors/weights/learned_intent.json``).
+They add ``"crossing_intent_bound"`` ``(1,)`` too: the variant's release risk bound from the same file (an
+intent at or below it may release a legal wait in `agents.predictive`).
+
+These are our modelling choices, documented here; the benchmark
 (`benchmarks/intention.py`) measures how well each variant ranks and calibrates against ground truth.
 """
 
@@ -43,6 +54,7 @@ import numpy as np
 from gymnasium import spaces
 
 from crossing_env.observation import (
+    CROSSING_INTENT_KEY,
     CROSSING_INTENTION_KEY,
     EGO_KEY,
     PEDESTRIANS_KEY,
@@ -52,8 +64,15 @@ from crossing_env.observation import (
     VehicleColumn,
 )
 from crossing_env.pedestrians.quantum import disjunction_probabilities
+from predictors.learned_intent_weights import (
+    CROSSING_INTENT_BOUND_KEY,
+    platt,
+    release_threshold,
+    shipped_weights,
+)
 
 __all__ = [
+    "INTENT_HORIZON",
     "ClassicalIntention",
     "CrossingIntention",
     "IntentionConfig",
@@ -61,9 +80,13 @@ __all__ = [
     "crossing_intention",
     "look_probability",
     "look_rate_table",
+    "map_from_env",
 ]
 
 Variant = Literal["qlb", "cbm"]
+INTENT_HORIZON = 10.0
+"""Seconds of the ``crossing_intent`` event: on the carriageway within this time (the intent to cross here,
+with a horizon long enough that a pedestrian who waits for the car to stop still counts)."""
 
 
 @dataclass(frozen=True)
@@ -121,7 +144,7 @@ def _lognormal_quantiles(mean: float, std: float, floor: float, n: int) -> np.nd
 
 
 @dataclass(frozen=True)
-class _Map:
+class RoadMap:
     """Static map facts relative to the ego's lane (what an HD map gives a car)."""
 
     kerb_low: float
@@ -140,7 +163,8 @@ class _Map:
     """There is a marked crossing."""
 
 
-def _map_from_env(env: gym.Env) -> _Map:
+def map_from_env(env: gym.Env) -> RoadMap:
+    """The static map facts of the env's scenario, relative to the ego's lane."""
     scenario = getattr(env.unwrapped, "scenario", None)
     if scenario is None:
         raise ValueError(
@@ -149,7 +173,7 @@ def _map_from_env(env: gym.Env) -> _Map:
     road, crossing = scenario.road, scenario.crossing
     ego_y = (scenario.ego.lane + 0.5) * road.lane_width
     length = scenario.traffic.length
-    return _Map(
+    return RoadMap(
         kerb_low=-ego_y,
         kerb_high=road.num_lanes * road.lane_width - ego_y,
         ego_length=length,
@@ -195,10 +219,11 @@ def look_rate_table(variant: Variant, config: IntentionConfig, factor: float = 1
 def crossing_intention(
     obs: dict[str, np.ndarray],
     horizon: float,
-    road_map: _Map,
+    road_map: RoadMap,
     config: IntentionConfig,
     rate_table: np.ndarray,
     red_rate_table: np.ndarray,
+    ahead_only: bool = True,
 ) -> np.ndarray:
     """Per-slot crossing probability within `horizon` from one observation (see the module docstring).
 
@@ -209,6 +234,9 @@ def crossing_intention(
         config: Model parameters.
         rate_table: `look_rate_table` of the variant (the only place QLB and CBM differ).
         red_rate_table: The same for pedestrians facing red.
+        ahead_only: Count only the road ahead of the ego's rear, before the ego has passed (the
+            ``crossing_intention`` event); False: anywhere on the road within `horizon` (the raw
+            ``crossing_intent``).
 
     Returns:
         (K,) float32 in [0, 1], 0 for absent slots.
@@ -227,7 +255,7 @@ def crossing_intention(
     # Time until the ego's rear passes the pedestrian's x (the event needs the pedestrian ahead of it).
     ahead = dx + half_len
     t_pass = np.where(ahead <= 0.0, 0.0, ahead / max(speed, 1e-3))
-    window_end = np.minimum(horizon, t_pass)
+    window_end = np.minimum(horizon, t_pass) if ahead_only else np.full_like(t_pass, horizon)
 
     # Where the pedestrian is relative to the nearer kerb and how fast it walks towards the road.
     south = dy < road_map.kerb_low
@@ -276,12 +304,15 @@ def crossing_intention(
     window = np.maximum(window_end - t_kerb - t_enter, 0.0)
     p_start = p_intent * -np.expm1(-rate * window)
 
-    prob = np.where(on_road, (ahead > 0.0) * c.on_road_ahead, p_start)  # all factors lie in [0, 1]
+    on_road_p = (ahead > 0.0) * c.on_road_ahead if ahead_only else np.full_like(ahead, c.on_road_ahead)
+    prob = np.where(on_road, on_road_p, p_start)  # all factors lie in [0, 1]
     return (prob * present).astype(np.float32)
 
 
 class CrossingIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
-    """Add ``crossing_intention`` (K,) to a crossing_env Dict observation (see the module docstring).
+    """Add ``crossing_intention`` and ``crossing_intent`` (K,) to a crossing_env Dict observation.
+
+    See the module docstring; ``crossing_intent`` is calibrated with the shipped Platt coefficients.
 
     Args:
         env: A ``crossing_env/Crossing-v0`` env (possibly wrapped).
@@ -314,10 +345,15 @@ class CrossingIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs)
         self.config = config or IntentionConfig()
         self._rates = look_rate_table(variant, self.config)
         self._red_rates = look_rate_table(variant, self.config, self.config.red_light_prior)
-        self._map = _map_from_env(env)
+        self._map = map_from_env(env)
+        self._calibration = tuple(shipped_weights()["calibration"][variant])
+        bound = release_threshold("qlb" if variant == "qlb" else "classical")
+        self._bound = np.array([bound], dtype=np.float32)
         k = space.spaces[PEDESTRIANS_KEY].shape[0]
         new = dict(space.spaces)
         new[CROSSING_INTENTION_KEY] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
+        new[CROSSING_INTENT_KEY] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
+        new[CROSSING_INTENT_BOUND_KEY] = spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float32)
         self.observation_space = spaces.Dict(new)
 
     def reset(
@@ -325,15 +361,27 @@ class CrossingIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs)
     ) -> tuple[Any, dict[str, Any]]:
         """Reset the env and refresh the static map (``options={"scenario": ...}`` may change it)."""
         obs, info = self.env.reset(seed=seed, options=options)
-        self._map = _map_from_env(self.env)
+        self._map = map_from_env(self.env)
         return self.observation(obs), info
 
     def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """The observation with ``crossing_intention`` added."""
+        """The observation with ``crossing_intention`` and ``crossing_intent`` added."""
         out = dict(observation)
         out[CROSSING_INTENTION_KEY] = crossing_intention(
             observation, self.horizon, self._map, self.config, self._rates, self._red_rates
         )
+        raw = crossing_intention(
+            observation,
+            INTENT_HORIZON,
+            self._map,
+            self.config,
+            self._rates,
+            self._red_rates,
+            ahead_only=False,
+        )
+        present = observation[PEDESTRIANS_KEY][:, PedestrianColumn.PRESENCE] > 0.5
+        out[CROSSING_INTENT_KEY] = (platt(raw, self._calibration) * present).astype(np.float32)
+        out[CROSSING_INTENT_BOUND_KEY] = self._bound.copy()
         return out
 
 

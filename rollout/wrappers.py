@@ -49,11 +49,16 @@ INTENTION_WRAPPERS: dict[str, WrapperEntry] = {
     "classical": WrapperEntry(
         "predictors.intention:ClassicalIntention", summary="the same model without the interference term"
     ),
+    "learned": WrapperEntry(
+        "predictors.learned_intent:LearnedIntention",
+        summary="logistic regression on observation features, fitted on simulated training seeds",
+    ),
     "oracle": WrapperEntry(
         "predictors.oracle:OracleIntention", privileged=True, summary="the true decision (upper bound)"
     ),
 }
-"""``--intention`` names (besides ``none``): wrappers that add ``crossing_intention``."""
+"""``--intention`` names (besides ``none``): wrappers that add ``crossing_intention`` and
+``crossing_intent`` (the real ones also their release bound ``crossing_intent_bound``)."""
 
 TRAJECTORY_WRAPPERS: dict[str, WrapperEntry] = {
     "s-cgru": WrapperEntry(

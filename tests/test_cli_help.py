@@ -18,7 +18,7 @@ def _help(parser, argv: list[str], capsys) -> str:
     ("name", "argv", "needles"),
     [
         ("eval", [], ["(default: 5)", "(default: 2024)", "(default: s-cgru)", "yielding"]),
-        ("replay", ["record"], ["(default: constant)", "{classical,oracle,qlb,none}"]),
+        ("replay", ["record"], ["(default: constant)", "{classical,learned,oracle,qlb,none}"]),
         ("replay", ["scene"], ["which recording set", "(default: s-cgru)", "--fallback-cvm"]),
         ("replay", ["screenshot"], ["(default: 9877)", "(default: 500)"]),
         ("replay", ["video"], ["(default: 10)", ".mp4", ".gif"]),
