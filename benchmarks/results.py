@@ -143,6 +143,12 @@ def _render_safe_rl(data: dict[str, Any]) -> str:
     return render_body(data)
 
 
+def _render_safe_rl_summary(data: dict[str, Any]) -> str:
+    from studies.safe_rl import render_summary
+
+    return render_summary(data)
+
+
 def _measure_intention() -> dict[str, Any]:
     """`benchmarks/intention.py` at its defaults (12 episodes per world, seeds 1000..1011), in process."""
     from benchmarks.intention import evaluate
@@ -172,11 +178,14 @@ class Entry:
     """The markdown file that holds the block between the markers."""
     behaviour: bool = True
     """Whether the numbers depend on simulated behaviour (then the fingerprint decides staleness)."""
+    source: str | None = None
+    """Another entry whose JSON this one renders elsewhere (a summary of it); measuring this one measures
+    that one."""
 
     @property
     def json_path(self) -> Path:
         """The committed JSON."""
-        return RESULTS_DIR / f"{self.name}.json"
+        return RESULTS_DIR / f"{self.source or self.name}.json"
 
 
 ENTRIES: dict[str, Entry] = {
@@ -197,6 +206,14 @@ ENTRIES: dict[str, Entry] = {
             REPO / "docs" / "scenario_discrimination.md",
         ),
         Entry("safe_rl", "slow", _measure_safe_rl, _render_safe_rl, REPO / "docs" / "rl.md"),
+        Entry(
+            "safe_rl_summary",
+            "slow",
+            _measure_safe_rl,
+            _render_safe_rl_summary,
+            REPO / "README.md",
+            source="safe_rl",
+        ),
         Entry(
             "intention",
             "slow",
@@ -283,9 +300,8 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         parser.error(f"unknown entries {unknown}; known: {', '.join(ENTRIES)}")
     fingerprint = behaviour_fingerprint()
-    chosen = list(
-        dict.fromkeys([ENTRIES[n] for n in args.names] + [e for e in ENTRIES.values() if e.tier == args.tier])
-    )
+    named = [ENTRIES[n] for n in args.names] + [e for e in ENTRIES.values() if e.tier == args.tier]
+    chosen = list(dict.fromkeys(ENTRIES[e.source] if e.source else e for e in named))
     for entry in chosen:
         print(f"measuring {entry.name} ...", file=sys.stderr)
         measure(entry, fingerprint)

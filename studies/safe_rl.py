@@ -296,15 +296,9 @@ def _fmt(x: float, digits: int = 3) -> str:
     return "-" if x is None or not np.isfinite(x) else f"{x:.{digits}f}"
 
 
-def render_body(data: dict[str, Any]) -> str:
-    """The markdown tables of a results JSON (the registry renders them into ``docs/rl.md``)."""
+def _evaluation_rows(data: dict[str, Any]) -> list[str]:
     ev = data["evaluation"]
-    lines = [
-        f"Evaluation: `crossing-eval`'s default seeds, {data['evaluation_episodes']} episodes per scenario"
-        " and policy on every built-in scenario, paired (same scenario and seed for each policy); the"
-        " learners are each one's selected seed (below). Delay change: mean paired difference in censored"
-        " delay relative to `yielding`'s mean, with a 95 % paired bootstrap interval.",
-        "",
+    rows = [
         "| policy | episodes | collisions | yield compliance (obligations) | censored delay s |"
         " delay vs yielding [95 % CI] |",
         "|---|---|---|---|---|---|",
@@ -318,10 +312,38 @@ def render_body(data: dict[str, Any]) -> str:
             if change
             else "-"
         )
-        lines.append(
+        rows.append(
             f"| {name} | {e['episodes']} | {e['collisions']} | {_fmt(e['compliance'])} ({e['obligations']}) |"
             f" {_fmt(e['censored_delay'], 2)} | {cell} |"
         )
+    return rows
+
+
+def render_summary(data: dict[str, Any]) -> str:
+    """The README's block: the evaluation table of both learners beside `yielding`."""
+    return "\n".join(
+        [
+            f"Safe RL, every built-in scenario, {data['evaluation_episodes']} paired episodes per scenario"
+            " and policy (rendered from `benchmarks/results/safe_rl.json`; curves and method in"
+            " [docs/rl.md](docs/rl.md)):",
+            "",
+            *_evaluation_rows(data),
+        ]
+    )
+
+
+def render_body(data: dict[str, Any]) -> str:
+    """The markdown tables of a results JSON (the registry renders them into ``docs/rl.md``)."""
+    lines = [
+        f"Evaluation: `crossing-eval`'s default seeds, {data['evaluation_episodes']} episodes per scenario"
+        " and policy on every built-in scenario, paired (same scenario and seed for each policy); the"
+        " learners are each one's selected seed (below). Delay change: mean paired difference in censored"
+        " delay relative to `yielding`'s mean, with a 95 % paired bootstrap interval.",
+        "",
+        *_evaluation_rows(data),
+        "",
+        "![Safe-RL learning curves over three seeds](rl_curves.png)",
+    ]
     lines += [
         "",
         f"Selection (seed {SELECTION_SEED}, {data['check_episodes']} episodes per scenario, seeds"
