@@ -115,6 +115,31 @@ def _render_discrimination(data: dict[str, Any]) -> str:
     return render_body(data)
 
 
+def _measure_predictors() -> dict[str, Any]:
+    """Every trajectory predictor on ETH/UCY and SDD from the shipped weights (`studies.predictor_tables`)."""
+    from studies.predictor_tables import measure
+
+    return measure()
+
+
+def _render_predictors(data: dict[str, Any]) -> str:
+    from studies.predictor_tables import render_results
+
+    return render_results(data)
+
+
+def _render_predictors_summary(data: dict[str, Any]) -> str:
+    from studies.predictor_tables import render_summary
+
+    return render_summary(data)
+
+
+def _predictors_fingerprint() -> str:
+    from studies.predictor_tables import fingerprint
+
+    return fingerprint()
+
+
 @dataclass(frozen=True)
 class Entry:
     """One registered result: how it is measured, where its JSON lives, where it is rendered."""
@@ -131,11 +156,22 @@ class Entry:
     """The markdown file that holds the block between the markers."""
     behaviour: bool = True
     """Whether the numbers depend on simulated behaviour (then the fingerprint decides staleness)."""
+    fingerprint: Callable[[], str] | None = None
+    """The entry's own fingerprint, for numbers that do not depend on the simulated behaviour (None: the
+    behaviour fingerprint, if ``behaviour``)."""
+    data: str = ""
+    """Name of the entry whose JSON this block renders, when one measurement feeds two documents."""
 
     @property
     def json_path(self) -> Path:
         """The committed JSON."""
-        return RESULTS_DIR / f"{self.name}.json"
+        return RESULTS_DIR / f"{self.data or self.name}.json"
+
+    def current_fingerprint(self, behaviour: str | None) -> str | None:
+        """What the JSON's fingerprint must equal to be current (None: never stale)."""
+        if self.fingerprint is not None:
+            return self.fingerprint()
+        return behaviour if self.behaviour else None
 
 
 ENTRIES: dict[str, Entry] = {
@@ -154,6 +190,23 @@ ENTRIES: dict[str, Entry] = {
             _measure_discrimination,
             _render_discrimination,
             REPO / "docs" / "scenario_discrimination.md",
+        ),
+        Entry(
+            "predictors",
+            "slow",
+            _measure_predictors,
+            _render_predictors,
+            REPO / "predictors" / "RESULTS.md",
+            fingerprint=_predictors_fingerprint,
+        ),
+        Entry(
+            "predictors_summary",
+            "slow",
+            _measure_predictors,
+            _render_predictors_summary,
+            REPO / "docs" / "predictors.md",
+            fingerprint=_predictors_fingerprint,
+            data="predictors",
         ),
     )
 }
@@ -182,7 +235,7 @@ def stale_note(data: dict[str, Any], fingerprint: str | None, name: str = "") ->
 def rendered_block(entry: Entry, fingerprint: str | None) -> str:
     """The block between the markers: the stale note (if any) and the entry's rendering of its JSON."""
     data = json.loads(entry.json_path.read_text(encoding="utf-8"))
-    note = stale_note(data, fingerprint, entry.name) if entry.behaviour else ""
+    note = stale_note(data, entry.current_fingerprint(fingerprint), entry.data or entry.name)
     return note + entry.render(data)
 
 
@@ -217,7 +270,7 @@ def measure(entry: Entry, fingerprint: str) -> None:
     """Run the entry's command and store its JSON with the commit and the fingerprint."""
     commit = source_commit()  # before the run: the entry's own JSON and page make the tree dirty after it
     data = entry.measure()
-    data.update(name=entry.name, commit=commit, fingerprint=fingerprint)
+    data.update(name=entry.data or entry.name, commit=commit, fingerprint=fingerprint)
     entry.json_path.parent.mkdir(parents=True, exist_ok=True)
     entry.json_path.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n", encoding="utf-8")
 
@@ -237,9 +290,13 @@ def main(argv: list[str] | None = None) -> int:
     chosen = list(
         dict.fromkeys([ENTRIES[n] for n in args.names] + [e for e in ENTRIES.values() if e.tier == args.tier])
     )
+    measured: set[Path] = set()
     for entry in chosen:
+        if entry.json_path in measured:  # two blocks rendered from one JSON: one measurement
+            continue
+        measured.add(entry.json_path)
         print(f"measuring {entry.name} ...", file=sys.stderr)
-        measure(entry, fingerprint)
+        measure(entry, entry.current_fingerprint(fingerprint) or fingerprint)
     differs = []
     for entry in ENTRIES.values():
         block = rendered_block(entry, fingerprint)
@@ -249,7 +306,7 @@ def main(argv: list[str] | None = None) -> int:
         elif chosen or args.render:
             write_block(entry, block)
         data = json.loads(entry.json_path.read_text(encoding="utf-8"))
-        state = "stale" if stale_note(data, fingerprint) else "current"
+        state = "stale" if stale_note(data, entry.current_fingerprint(fingerprint)) else "current"
         print(
             f"{entry.name:16s} {state:8s} measured on {str(data.get('commit'))[:12]}  {entry.document.name}"
         )
