@@ -22,6 +22,7 @@ import re
 import subprocess
 import sys
 import tempfile
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -134,6 +135,67 @@ def _render_predictors_summary(data: dict[str, Any]) -> str:
     return render_summary(data)
 
 
+def _measure_sim_transfer() -> dict[str, Any]:
+    """`python -m studies.sim_transfer` with its defaults: the predictors on simulated pedestrians."""
+    from predictors.data import default_data_root
+    from studies.sim_transfer import measure
+
+    start = time.perf_counter()
+    data = measure(["busy_zebra", "zebra_case1"], 3, 0, default_data_root())
+    data.update(command="python -m studies.sim_transfer", wall_seconds=round(time.perf_counter() - start, 1))
+    return data
+
+
+def _render_sim_transfer(data: dict[str, Any]) -> str:
+    from studies.sim_transfer import render
+
+    return (
+        f"Measured with `{data['command']}` (defaults) on commit `{data['commit'][:12]}`,"
+        f" {data['wall_seconds']:.0f} s; rendered from `benchmarks/results/sim_transfer.json` by"
+        " `python -m benchmarks.results`.\n\n" + render(data)
+    )
+
+
+def _measure_predictor_checkpoints() -> dict[str, Any]:
+    from studies.predictor_tables import measure_checkpoints
+
+    return measure_checkpoints()
+
+
+def _render_predictor_checkpoints(data: dict[str, Any]) -> str:
+    from studies.predictor_tables import render_checkpoints
+
+    return render_checkpoints(data)
+
+
+def _measure_predictor_speed() -> dict[str, Any]:
+    """`python benchmarks/predictors.py` (defaults): its printed report of sizes and CPU times."""
+    start = time.perf_counter()
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "predictors.py")],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=REPO,
+    )
+    if proc.returncode != 0:
+        raise RuntimeError(f"benchmarks/predictors.py failed ({proc.returncode}): {proc.stderr[-2000:]}")
+    return {
+        "command": "python benchmarks/predictors.py",
+        "output": proc.stdout,
+        "wall_seconds": round(time.perf_counter() - start, 1),
+    }
+
+
+def _render_predictor_speed(data: dict[str, Any]) -> str:
+    return (
+        f"Measured with `{data['command']}` (defaults) on commit `{data['commit'][:12]}`,"
+        f" {data['wall_seconds']:.0f} s; CPU times depend on the machine and its load, the ratios much less;"
+        " rendered from `benchmarks/results/predictor_speed.json` by `python -m benchmarks.results`.\n\n"
+        f"```\n{data['output'].rstrip()}\n```"
+    )
+
+
 def _predictors_fingerprint() -> str:
     from studies.predictor_tables import fingerprint
 
@@ -207,6 +269,28 @@ ENTRIES: dict[str, Entry] = {
             REPO / "docs" / "predictors.md",
             fingerprint=_predictors_fingerprint,
             data="predictors",
+        ),
+        Entry(
+            "predictor_checkpoints",
+            "fast",
+            _measure_predictor_checkpoints,
+            _render_predictor_checkpoints,
+            REPO / "predictors" / "RESULTS.md",
+            fingerprint=_predictors_fingerprint,
+        ),
+        Entry(
+            "predictor_speed",
+            "slow",
+            _measure_predictor_speed,
+            _render_predictor_speed,
+            REPO / "predictors" / "RESULTS.md",
+        ),
+        Entry(
+            "sim_transfer",
+            "slow",
+            _measure_sim_transfer,
+            _render_sim_transfer,
+            REPO / "docs" / "predictors.md",
         ),
     )
 }

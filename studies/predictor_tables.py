@@ -256,6 +256,30 @@ def findings(data: dict[str, Any]) -> list[str]:
     return [f"- {line}" for line in out]
 
 
+def social_force_fit_table() -> list[str]:
+    """The committed social-force fit (``predictors/social_force_fit.json``; part of :func:`fingerprint`)."""
+    fit = json.loads(FIT_FILE.read_text(encoding="utf-8"))["scenes"]
+    lines = [
+        "Social-force parameters (`predictors/social_force_fit.json`, written by `python -m"
+        " studies.fit_social_force`; its hash is part of this block's fingerprint):",
+        "",
+        "| Scene | parameters | τ (s) | A (m/s²) | B (m) | λ | sample heading σ | train K=1 ADE | val K=1 ADE"
+        " | windows (train/val) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for scene, f in fit.items():
+        for kind, label in (("default", "simulator default"), ("fit", "fit")):
+            q = f[kind]
+            params = " | ".join(
+                f"{q[k]:g}" for k in ("relaxation_time", "base_strength", "ped_range", "anisotropy")
+            )
+            lines.append(
+                f"| {scene} | {label} | {params} | {q['heading_std_deg']:g}° | {q['train_ade']:.3f}"
+                f" | {q['val_ade']:.3f} | {f['train_windows']}/{f['val_windows']} |"
+            )
+    return [*lines, ""]
+
+
 def render_results(data: dict[str, Any]) -> str:
     """The block of ``predictors/RESULTS.md``: every row on every scene, the tuned parameters, findings."""
     lines = [_provenance(data), ""]
@@ -290,7 +314,7 @@ def render_results(data: dict[str, Any]) -> str:
         for n in names:
             cells = " | ".join(_cell(_res(data)[n][s], metric, 3) for s in SCENES)
             lines.append(f"| {short[metric]}: {n} | {cells} |")
-    lines += ["", "Findings (computed from the JSON):", "", *findings(data)]
+    lines += ["", *social_force_fit_table(), "Findings (computed from the JSON):", "", *findings(data)]
     return "\n".join(lines)
 
 
@@ -312,4 +336,75 @@ def render_summary(data: dict[str, Any]) -> str:
         cells.append("–" if name == "k1-ref" else _cell(e["sdd"], "ped20"))
         lines.append(f"| {_label(name)} | " + " | ".join(cells) + " |")
     lines += ["", *findings(data)]
+    return "\n".join(lines)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# The shipped checkpoints: training budget (their metadata) and what they predict (studies.diagnostics)
+# ---------------------------------------------------------------------------------------------------------
+
+
+def measure_checkpoints(data_root: Path | None = None) -> dict[str, Any]:
+    """Per shipped checkpoint: size, its stored training metadata and `studies.diagnostics.diagnose`."""
+    from predictors.checkpoints import checkpoint_meta, load_model
+    from predictors.models import count_parameters
+    from studies.diagnostics import diagnose
+
+    root = data_root or default_data_root()
+    torch.set_num_threads(1)
+    start = time.perf_counter()
+    rows: dict[str, Any] = {}
+    keys = ("epochs_run", "windows_seen", "wall_s", "best_epoch", "val_ade", "val_fde")
+    for path in sorted(WEIGHTS_DIR.glob("*.pt")):
+        meta = checkpoint_meta(path)
+        model = load_model(path)
+        rows[path.name] = {
+            "hidden_size": model.config.hidden_size,
+            "embed_size": model.config.embed_size,
+            "parameters": count_parameters(model)[0],
+            **{k: meta[k] for k in keys},
+            **diagnose(path, root),
+        }
+    return {
+        "command": "python -m benchmarks.results predictor_checkpoints",
+        "checkpoints": rows,
+        "wall_seconds": round(time.perf_counter() - start, 1),
+    }
+
+
+def render_checkpoints(data: dict[str, Any]) -> str:
+    """The training-budget and diagnostics table of ``predictors/RESULTS.md``."""
+    lines = [
+        f"Measured with `{data['command']}` on commit `{str(data['commit'])[:12]}`"
+        f" ({data['wall_seconds']:.0f} s): size and training metadata stored in each shipped checkpoint, and"
+        " `python -m studies.diagnostics` (≤ 300 evenly spaced windows of the checkpoint's test split, the"
+        " `_all` model on ETH val; pedestrians moving ≥ 0.1 m/step); rendered from"
+        " `benchmarks/results/predictor_checkpoints.json`.",
+        "",
+        "| Checkpoint | hidden/embed | params | epochs run (× 25 % of train) | windows seen | wall s"
+        " | best epoch | val ADE/FDE | sample scale | K=1 speed / CVM speed, median [p10, p90]"
+        " | heading change, median | median σ (m/step) |",
+        "|---" * 12 + "|",
+    ]
+    for name, c in data["checkpoints"].items():
+        lines.append(
+            f"| {name} | {c['hidden_size']}/{c['embed_size']} | {c['parameters']:,} | {c['epochs_run']}"
+            f" | {c['windows_seen']} | {c['wall_s']:.1f} | {c['best_epoch']}"
+            f" | {c['val_ade']:.3f}/{c['val_fde']:.3f} | {c['sample_scale']:g}"
+            f" | {c['speed_ratio_median']:.2f} [{c['speed_ratio_p10']:.2f}, {c['speed_ratio_p90']:.2f}]"
+            f" | {c['heading_change_median_deg']:.1f}° | {c['sigma_median']:.2f} |"
+        )
+    rows = list(data["checkpoints"].values())
+    stuck = [c for c in rows if c["sigma_median"] >= 0.5]
+    ratio = [c["speed_ratio_median"] for c in rows]
+    heading = [c["heading_change_median_deg"] for c in rows]
+    lines += [
+        "",
+        f"- σ learned (median below 0.5 m/step) in {len(rows) - len(stuck)} of {len(rows)} checkpoints; the"
+        " others kept σ near its initial 1 m/step, and their best val epochs are "
+        + ", ".join(sorted({str(c["best_epoch"]) for c in stuck}))
+        + ".",
+        f"- K = 1 speed / CVM speed, median per checkpoint: {min(ratio):.2f}–{max(ratio):.2f}; heading"
+        f" change, median: {min(heading):.1f}–{max(heading):.1f}°.",
+    ]
     return "\n".join(lines)
