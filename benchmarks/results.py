@@ -9,7 +9,10 @@ rendered from that JSON into the docs between markers, never typed by hand.
 Each JSON records the commit it was measured on and a **behaviour fingerprint**: a hash of a small
 fixed-seed run through the same code path (the rollout of every built-in scenario with two policies). When
 the code's fingerprint no longer matches the JSON's, the table is rendered with a marker saying that it was
-measured on an older behaviour and must be regenerated: a stale table is never shown as current.
+measured on an older behaviour and must be regenerated: a stale table is never shown as current. An
+entry whose numbers do not come from simulated episodes carries its own fingerprint instead (the predictor
+tables on recorded data: a hash of the shipped weights' manifest, the social-force fit and a tiny fixed
+evaluation of every row), and two blocks may render one JSON (measured once).
 Rendered blocks sit between ``<!-- results:NAME -->`` and ``<!-- /results:NAME -->`` in a markdown file.
 """
 
@@ -272,7 +275,7 @@ ENTRIES: dict[str, Entry] = {
         ),
         Entry(
             "predictor_checkpoints",
-            "fast",
+            "slow",
             _measure_predictor_checkpoints,
             _render_predictor_checkpoints,
             REPO / "predictors" / "RESULTS.md",

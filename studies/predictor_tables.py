@@ -157,7 +157,9 @@ def _cell(entry: dict[str, Any], metric: str, digits: int = 2) -> str:
 
 
 def _res(data: dict[str, Any]) -> dict[str, dict[str, dict[str, Any]]]:
-    return data["evaluate"]["results"]
+    """The rows in the measured order (the JSON is stored with sorted keys)."""
+    res = data["evaluate"]["results"]
+    return {m: res[m] for m in data.get("models", res)}
 
 
 def _provenance(data: dict[str, Any], json_name: str = "predictors.json") -> str:
@@ -287,7 +289,8 @@ def render_results(data: dict[str, Any]) -> str:
         lines += _per_scene_table(data, metric)
     counts = data["evaluate"]["counts"]
     lines += [
-        "Test windows / pedestrian instances: " + ", ".join(f"{s} {c[0]}/{c[1]}" for s, c in counts.items()),
+        "Test windows / pedestrian instances: "
+        + ", ".join(f"{s} {counts[s][0]}/{counts[s][1]}" for s in EVAL_SCENES if s in counts),
         "",
         f"`dcvm` (d, s) chosen on val by best-of-20 ADE: {_chosen(data, 'dcvm')}.",
         f"`k1-ref` damping chosen on val by K = 1 ADE (`cvm`: plain CVM won): {_chosen(data, 'k1-ref')}.",

@@ -142,7 +142,10 @@ def render(res: dict[str, Any]) -> str:
         "| Predictor | K=1 ADE/FDE | best-of-20 per ped | best-of-20 per scene | energy score |",
         "|---|---|---|---|---|",
     ]
-    for name, r in res["results"].items():
+    order = ["cvm", "cvm-s", "kalman", "dcvm (zara1 val)", "sf", "sf-qlb", "s-cgru_all (wrapper)"]
+    names = sorted(res["results"], key=lambda n: (order.index(n) if n in order else len(order), n))
+    for name in names:  # a fixed order: the stored JSON has sorted keys
+        r = res["results"][name]
         lines.append(
             f"| {name} | {r['k1'][0]:.2f}/{r['k1'][1]:.2f} | {r['ped20'][0]:.2f}/{r['ped20'][1]:.2f}"
             f" | {r['scene20'][0]:.2f}/{r['scene20'][1]:.2f} | {r['es'][0]:.2f} |"
