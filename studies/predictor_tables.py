@@ -233,11 +233,10 @@ def findings(data: dict[str, Any]) -> list[str]:
     ranked = sorted((_v(data, n, "avg", "es"), n) for n in _res(data) if n != "k1-ref")
     rank = [n for _, n in ranked].index("dcvm") + 1
     lowest = ", ".join(f"{s.upper()} `{_lowest_es(data, s)}`" for s in EVAL_SCENES)
-    out.append(
-        f"Energy score, AVG: lowest `{ranked[0][1]}` ({ranked[0][0]:.2f}); `dcvm`, whose spread was tuned for"
-        f" best-of-20, {_v(data, 'dcvm', 'avg', 'es'):.2f}, rank {rank} of {len(ranked)}. Lowest per scene:"
-        f" {lowest}."
-    )
+    es = _v(data, "dcvm", "avg", "es")
+    dcvm = f"`dcvm` (spread tuned for best-of-20) {es:.2f}, rank {rank} of {len(ranked)}"
+    best = f"lowest `{ranked[0][1]}` ({ranked[0][0]:.2f}); " if rank > 1 else ""
+    out.append(f"Energy score, AVG: {best}{dcvm}. Lowest per scene: {lowest}.")
     # Sampling schemes of the networks.
     pairs = [(n, s) for n in NETWORKS for s in SCENES]
     wins_ade = sum(_v(data, f"{n}+persist", s, "ped20") < _v(data, n, s, "ped20") for n, s in pairs)
@@ -294,7 +293,11 @@ def render_results(data: dict[str, Any]) -> str:
         "",
         f"`dcvm` (d, s) chosen on val by best-of-20 ADE: {_chosen(data, 'dcvm')}.",
         f"`k1-ref` damping chosen on val by K = 1 ADE (`cvm`: plain CVM won): {_chosen(data, 'k1-ref')}.",
-        "† SDD evaluated with the model trained on all ETH/UCY recordings (cross-dataset).",
+        *(
+            ["† SDD evaluated with the model trained on all ETH/UCY recordings (cross-dataset)."]
+            if any(str(e["sdd"].get("weights", "")).endswith("_all.pt") for e in _res(data).values())
+            else []
+        ),
         "",
         "S-CGRU against the comparators, per scene (3 decimals):",
         "",

@@ -48,6 +48,8 @@ def test_the_energy_score_finding_ranks_dcvm_and_names_the_lowest() -> None:
     data = _data({}, {"dcvm": 1.5, "s-cgru+persist": 1.4, "kalman": 1.6})
     es = pt.findings(data)[1]
     assert "lowest `s-cgru+persist` (1.40)" in es and "1.50, rank 2 of" in es
+    first = pt.findings(_data({}, {"dcvm": 1.3}))[1]
+    assert "AVG: `dcvm` (spread tuned for best-of-20) 1.30, rank 1 of" in first
 
 
 def test_the_summary_shows_k1_ref_at_k1_only() -> None:
