@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
+import pytest
+import torch
+
+from predictors import metrics
 from predictors.metrics import EVAL_SCENES
 from studies import predictor_tables as pt
 from studies.evaluate import with_average
@@ -57,3 +62,22 @@ def test_the_summary_shows_k1_ref_at_k1_only() -> None:
     row = next(line for line in text.splitlines() if line.startswith("| K = 1 comparator"))
     assert row.endswith("| 0.50/1.00 | – | – | – | – |")
     assert "S-CGRU, persistent, σ × 1 (the model's distribution)" in text
+
+
+def test_the_fingerprint_catches_a_changed_metric(
+    eth_ucy_root: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Swapping the fair energy score back to the V-statistic must mark the predictor tables stale."""
+
+    def v_statistic(samples: torch.Tensor, fut: torch.Tensor) -> torch.Tensor:
+        x = samples.permute(1, 0, 2, 3).flatten(2)
+        return (x - fut.flatten(1)[:, None]).norm(dim=-1).mean(1) - 0.5 * torch.cdist(x, x).mean((1, 2))
+
+    pt.fingerprint.cache_clear()
+    current = pt.fingerprint()
+    monkeypatch.setattr(metrics, "energy_score", v_statistic)
+    pt.fingerprint.cache_clear()
+    try:
+        assert pt.fingerprint() != current
+    finally:
+        pt.fingerprint.cache_clear()
