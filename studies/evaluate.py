@@ -147,7 +147,7 @@ def to_markdown(res: dict[str, object]) -> str:
         "k1": "Most likely (K = 1)",
         "ped20": "Best-of-20, per pedestrian (ADE and FDE minimised separately)",
         "scene20": "Best-of-20, per scene (Social-GAN `evaluate_model.py` style)",
-        "es": "Energy score of the 20 samples (m, lower is better; proper scoring rule)",
+        "es": "Energy score of the 20 samples (fair form; m, lower is better; proper scoring rule)",
     }
     results: dict[str, dict[str, dict]] = res["results"]  # type: ignore[assignment]
     cols = [*SCENES, "avg", "sdd"]
