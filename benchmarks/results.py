@@ -9,7 +9,10 @@ rendered from that JSON into the docs between markers, never typed by hand.
 Each JSON records the commit it was measured on and a **behaviour fingerprint**: a hash of a small
 fixed-seed run through the same code path (the rollout of every built-in scenario with two policies). When
 the code's fingerprint no longer matches the JSON's, the table is rendered with a marker saying that it was
-measured on an older behaviour and must be regenerated: a stale table is never shown as current.
+measured on an older behaviour and must be regenerated: a stale table is never shown as current. An
+entry whose numbers do not come from simulated episodes carries its own fingerprint instead (the predictor
+tables on recorded data: a hash of the shipped weights' manifest, the social-force fit and a tiny fixed
+evaluation of every row), and two blocks may render one JSON (measured once).
 Rendered blocks sit between ``<!-- results:NAME -->`` and ``<!-- /results:NAME -->`` in a markdown file.
 """
 
@@ -22,6 +25,7 @@ import re
 import subprocess
 import sys
 import tempfile
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -149,6 +153,25 @@ def _render_safe_rl_summary(data: dict[str, Any]) -> str:
     return render_summary(data)
 
 
+def _measure_predictors() -> dict[str, Any]:
+    """Every trajectory predictor on ETH/UCY and SDD from the shipped weights (`studies.predictor_tables`)."""
+    from studies.predictor_tables import measure
+
+    return measure()
+
+
+def _render_predictors(data: dict[str, Any]) -> str:
+    from studies.predictor_tables import render_results
+
+    return render_results(data)
+
+
+def _render_predictors_summary(data: dict[str, Any]) -> str:
+    from studies.predictor_tables import render_summary
+
+    return render_summary(data)
+
+
 def _measure_intention() -> dict[str, Any]:
     """`benchmarks/intention.py` at its defaults (12 episodes per world, seeds 1000..1011), in process."""
     from benchmarks.intention import evaluate
@@ -160,6 +183,73 @@ def _render_intention(data: dict[str, Any]) -> str:
     from benchmarks.intention import render_body
 
     return render_body(data)
+
+
+def _measure_sim_transfer() -> dict[str, Any]:
+    """`python -m studies.sim_transfer` with its defaults: the predictors on simulated pedestrians."""
+    from predictors.data import default_data_root
+    from studies.sim_transfer import measure
+
+    start = time.perf_counter()
+    data = measure(["busy_zebra", "zebra_case1"], 3, 0, default_data_root())
+    data.update(command="python -m studies.sim_transfer", wall_seconds=round(time.perf_counter() - start, 1))
+    return data
+
+
+def _render_sim_transfer(data: dict[str, Any]) -> str:
+    from studies.sim_transfer import render
+
+    return (
+        f"Measured with `{data['command']}` (defaults) on commit `{data['commit'][:12]}`,"
+        f" {data['wall_seconds']:.0f} s; rendered from `benchmarks/results/sim_transfer.json` by"
+        " `python -m benchmarks.results`.\n\n" + render(data)
+    )
+
+
+def _measure_predictor_checkpoints() -> dict[str, Any]:
+    from studies.predictor_tables import measure_checkpoints
+
+    return measure_checkpoints()
+
+
+def _render_predictor_checkpoints(data: dict[str, Any]) -> str:
+    from studies.predictor_tables import render_checkpoints
+
+    return render_checkpoints(data)
+
+
+def _measure_predictor_speed() -> dict[str, Any]:
+    """`python benchmarks/predictors.py` (defaults): its printed report of sizes and CPU times."""
+    start = time.perf_counter()
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "predictors.py")],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=REPO,
+    )
+    if proc.returncode != 0:
+        raise RuntimeError(f"benchmarks/predictors.py failed ({proc.returncode}): {proc.stderr[-2000:]}")
+    return {
+        "command": "python benchmarks/predictors.py",
+        "output": proc.stdout,
+        "wall_seconds": round(time.perf_counter() - start, 1),
+    }
+
+
+def _render_predictor_speed(data: dict[str, Any]) -> str:
+    return (
+        f"Measured with `{data['command']}` (defaults) on commit `{data['commit'][:12]}`,"
+        f" {data['wall_seconds']:.0f} s; CPU times depend on the machine and its load, the ratios much less;"
+        " rendered from `benchmarks/results/predictor_speed.json` by `python -m benchmarks.results`.\n\n"
+        f"```\n{data['output'].rstrip()}\n```"
+    )
+
+
+def _predictors_fingerprint() -> str:
+    from studies.predictor_tables import fingerprint
+
+    return fingerprint()
 
 
 @dataclass(frozen=True)
@@ -178,14 +268,22 @@ class Entry:
     """The markdown file that holds the block between the markers."""
     behaviour: bool = True
     """Whether the numbers depend on simulated behaviour (then the fingerprint decides staleness)."""
-    source: str | None = None
-    """Another entry whose JSON this one renders elsewhere (a summary of it); measuring this one measures
-    that one."""
+    fingerprint: Callable[[], str] | None = None
+    """The entry's own fingerprint, for numbers that do not depend on the simulated behaviour (None: the
+    behaviour fingerprint, if ``behaviour``)."""
+    data: str = ""
+    """Name of the entry whose JSON this block renders, when one measurement feeds two documents."""
 
     @property
     def json_path(self) -> Path:
         """The committed JSON."""
-        return RESULTS_DIR / f"{self.source or self.name}.json"
+        return RESULTS_DIR / f"{self.data or self.name}.json"
+
+    def current_fingerprint(self, behaviour: str | None) -> str | None:
+        """What the JSON's fingerprint must equal to be current (None: never stale)."""
+        if self.fingerprint is not None:
+            return self.fingerprint()
+        return behaviour if self.behaviour else None
 
 
 ENTRIES: dict[str, Entry] = {
@@ -212,7 +310,7 @@ ENTRIES: dict[str, Entry] = {
             _measure_safe_rl,
             _render_safe_rl_summary,
             REPO / "README.md",
-            source="safe_rl",
+            data="safe_rl",
         ),
         Entry(
             "intention",
@@ -220,6 +318,45 @@ ENTRIES: dict[str, Entry] = {
             _measure_intention,
             _render_intention,
             REPO / "predictors" / "INTENTION_RESULTS.md",
+        ),
+        Entry(
+            "predictors",
+            "slow",
+            _measure_predictors,
+            _render_predictors,
+            REPO / "predictors" / "RESULTS.md",
+            fingerprint=_predictors_fingerprint,
+        ),
+        Entry(
+            "predictors_summary",
+            "slow",
+            _measure_predictors,
+            _render_predictors_summary,
+            REPO / "docs" / "predictors.md",
+            fingerprint=_predictors_fingerprint,
+            data="predictors",
+        ),
+        Entry(
+            "predictor_checkpoints",
+            "slow",
+            _measure_predictor_checkpoints,
+            _render_predictor_checkpoints,
+            REPO / "predictors" / "RESULTS.md",
+            fingerprint=_predictors_fingerprint,
+        ),
+        Entry(
+            "predictor_speed",
+            "slow",
+            _measure_predictor_speed,
+            _render_predictor_speed,
+            REPO / "predictors" / "RESULTS.md",
+        ),
+        Entry(
+            "sim_transfer",
+            "slow",
+            _measure_sim_transfer,
+            _render_sim_transfer,
+            REPO / "docs" / "predictors.md",
         ),
     )
 }
@@ -248,7 +385,7 @@ def stale_note(data: dict[str, Any], fingerprint: str | None, name: str = "") ->
 def rendered_block(entry: Entry, fingerprint: str | None) -> str:
     """The block between the markers: the stale note (if any) and the entry's rendering of its JSON."""
     data = json.loads(entry.json_path.read_text(encoding="utf-8"))
-    note = stale_note(data, fingerprint, entry.name) if entry.behaviour else ""
+    note = stale_note(data, entry.current_fingerprint(fingerprint), entry.data or entry.name)
     return note + entry.render(data)
 
 
@@ -283,7 +420,7 @@ def measure(entry: Entry, fingerprint: str) -> None:
     """Run the entry's command and store its JSON with the commit and the fingerprint."""
     commit = source_commit()  # before the run: the entry's own JSON and page make the tree dirty after it
     data = entry.measure()
-    data.update(name=entry.name, commit=commit, fingerprint=fingerprint)
+    data.update(name=entry.data or entry.name, commit=commit, fingerprint=fingerprint)
     entry.json_path.parent.mkdir(parents=True, exist_ok=True)
     entry.json_path.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n", encoding="utf-8")
 
@@ -300,11 +437,16 @@ def main(argv: list[str] | None = None) -> int:
     if unknown:
         parser.error(f"unknown entries {unknown}; known: {', '.join(ENTRIES)}")
     fingerprint = behaviour_fingerprint()
-    named = [ENTRIES[n] for n in args.names] + [e for e in ENTRIES.values() if e.tier == args.tier]
-    chosen = list(dict.fromkeys(ENTRIES[e.source] if e.source else e for e in named))
+    chosen = list(
+        dict.fromkeys([ENTRIES[n] for n in args.names] + [e for e in ENTRIES.values() if e.tier == args.tier])
+    )
+    measured: set[Path] = set()
     for entry in chosen:
+        if entry.json_path in measured:  # two blocks rendered from one JSON: one measurement
+            continue
+        measured.add(entry.json_path)
         print(f"measuring {entry.name} ...", file=sys.stderr)
-        measure(entry, fingerprint)
+        measure(entry, entry.current_fingerprint(fingerprint) or fingerprint)
     differs = []
     for entry in ENTRIES.values():
         block = rendered_block(entry, fingerprint)
@@ -314,7 +456,7 @@ def main(argv: list[str] | None = None) -> int:
         elif chosen or args.render:
             write_block(entry, block)
         data = json.loads(entry.json_path.read_text(encoding="utf-8"))
-        state = "stale" if stale_note(data, fingerprint) else "current"
+        state = "stale" if stale_note(data, entry.current_fingerprint(fingerprint)) else "current"
         print(
             f"{entry.name:16s} {state:8s} measured on {str(data.get('commit'))[:12]}  {entry.document.name}"
         )

@@ -4,6 +4,9 @@ The most-likely path is the last observed displacement scaled by ``d`` and repea
 isotropic offset ``e_k ~ N(0, s^2 I)`` (metres per step) to that velocity for the whole horizon. ``(d, s)``
 are picked per leave-one-out scene on its **val** split by per-pedestrian best-of-20 ADE (issue 15): any
 learned model should beat this before its architecture is credited.
+
+That spread-aware choice is not the right reference for the most-likely path: :func:`tune_k1` picks the
+damping for K = 1 alone (val K = 1 ADE, ``d = 1`` being plain CVM), the comparator of every K = 1 column.
 """
 
 from __future__ import annotations
@@ -16,6 +19,8 @@ from predictors.data import PRED_LEN, Windows, iterate_batches
 
 DAMPING_GRID: tuple[float, ...] = (0.8, 0.85, 0.9, 0.95, 1.0)
 SPREAD_GRID: tuple[float, ...] = (0.03, 0.04, 0.05, 0.06, 0.07, 0.08, 0.09, 0.1)
+K1_DAMPING_GRID: tuple[float, ...] = tuple(round(0.5 + 0.01 * i, 2) for i in range(51))
+"""Dampings tried by :func:`tune_k1`: 0.50 to 1.00 in steps of 0.01 (1.00 is plain CVM)."""
 
 
 @dataclass(frozen=True)
@@ -71,4 +76,21 @@ def tune(
             ade = float(err.min(dim=0).values.mean())
             if ade < best_ade:
                 best, best_ade = DampedCVM(d, s), ade
+    return best, best_ade
+
+
+@torch.no_grad()
+def tune_k1(val: Windows, dampings: tuple[float, ...] = K1_DAMPING_GRID) -> tuple[DampedCVM, float]:
+    """The damping with the lowest most-likely ADE on ``val`` (spread 0): the K = 1 comparator.
+
+    ``dampings`` should hold 1.0, so the result is the better on val of plain CVM and the best damped CVM;
+    ties go to the larger damping (CVM first). Returns the predictor and its val ADE.
+    """
+    b = next(iterate_batches(val, val.num_peds))
+    best, best_ade = DampedCVM(1.0, 0.0), float("inf")
+    for d in sorted(dampings, reverse=True):
+        p = DampedCVM(d, 0.0)
+        ade = float((p.predict(b.obs) - b.fut).norm(dim=-1).mean())
+        if ade < best_ade:
+            best, best_ade = p, ade
     return best, best_ade

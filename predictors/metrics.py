@@ -9,8 +9,9 @@ windows with >= 2 such pedestrians. Metrics in metres:
 * ``scene20``: best-of-20 *per scene* (Social-GAN ``evaluate_model.py``): per window the sample whose summed
   error over the window's pedestrians is smallest, ADE and FDE minimised separately;
 * ``es``: energy score of the 20 samples (Gneiting & Raftery 2007; Shahroudi et al. 2024), per pedestrian on
-  the flattened 24-dimensional future, averaged: a strictly proper scoring rule, so a spread tuned for
-  best-of-N (which rewards over-dispersion) cannot pass as a good predictive distribution. Lower is better.
+  the flattened 24-dimensional future, averaged; the fair estimate (pairs ``i != j``), which is unbiased
+  for the score of the distribution the samples come from. A strictly proper scoring rule: it rewards a
+  spread only as far as the truth falls inside it, whatever the spread was tuned for. Lower is better.
 
 The tables built from them (every predictor on every test scene) are ``python -m studies.evaluate``.
 """
@@ -50,12 +51,17 @@ def scene_min(err: torch.Tensor, seq_start_end: torch.Tensor) -> torch.Tensor:
 def energy_score(samples: torch.Tensor, fut: torch.Tensor) -> torch.Tensor:
     """Per-pedestrian energy score ``E|X - y| - E|X - X'|/2`` of ``samples (S, N, T, 2)`` against ``fut``.
 
-    Sample estimate over the flattened ``T * 2`` trajectory (the V-statistic form, which is 0 for a point
-    mass on the truth); a deterministic predictor scores its Euclidean distance to the true future.
+    Fair sample estimate over the flattened ``T * 2`` trajectory: the pair term averages the ``S (S - 1)``
+    pairs ``i != j``. The V-statistic form (``i = j`` included) shrinks the pair term by ``(S - 1) / S`` and
+    so penalises spread samples; the fair form is unbiased for any ``S``. A point forecast (``S = 1`` or
+    identical samples) scores its Euclidean distance to the true future.
     """
     x = samples.permute(1, 0, 2, 3).flatten(2)  # (N, S, T*2)
     y = fut.flatten(1)[:, None]  # (N, 1, T*2)
-    return (x - y).norm(dim=-1).mean(dim=1) - 0.5 * torch.cdist(x, x).mean(dim=(1, 2))
+    s = x.shape[1]
+    spread = torch.cdist(x, x, compute_mode="donot_use_mm_for_euclid_dist").sum(dim=(1, 2))  # zero diagonal
+    pair = spread / (s * (s - 1)) if s > 1 else torch.zeros_like(spread)
+    return (x - y).norm(dim=-1).mean(dim=1) - 0.5 * pair
 
 
 @torch.no_grad()

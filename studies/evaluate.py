@@ -6,7 +6,9 @@ Protocol and metrics (``k1``, ``ped20``, ``scene20``, ``es``): :mod:`predictors.
 recordings.
 
 Baselines tuned on val only: ``dcvm`` (damped CVM + persistent Gaussian velocity offset,
-:mod:`predictors.damped`, ``(d, s)`` per scene). Social-force rows
+:mod:`predictors.damped`, ``(d, s)`` per scene, chosen for best-of-20) and ``k1-ref``, the K = 1
+comparator (the better on val of CVM and a damped CVM whose damping is chosen for K = 1 ADE; its samples
+are its point repeated). Social-force rows
 (:mod:`predictors.social_force_predictor`): ``sf`` and ``sf-qlb`` use the simulator's default parameters
 (classical / QLB-updated intensity), ``sf-fit`` and ``sf-fit-qlb`` the parameters fitted on the scene's
 train split (``predictors/social_force_fit.json``, written by :mod:`studies.fit_social_force`).
@@ -14,9 +16,11 @@ train split (``predictors/social_force_fit.json``, written by :mod:`studies.fit_
 Learned models use ``predictors/weights/<kind>_<scene>.pt`` (trained on that scene's ``train/`` split,
 selected on ``val/``). Their 20 samples are drawn from the model's own predictive distribution, per step and
 autoregressively (each drawn displacement is fed back, as Social-LSTM and Social-GAN sample), with the
-learned sigma unscaled. ``<kind>+corr`` is the earlier variant: the most-likely path plus one persistent
-draw per sample through each step's Gaussian, sigma multiplied by the ``sample_scale`` tuned on val for
-best-of-20 (not a draw from the model's joint distribution). For SDD,
+learned sigma unscaled. ``<kind>+persist`` is the most-likely path plus one persistent draw per sample
+through each step's Gaussian, sigma unscaled: every step's displacement is drawn from the Gaussian the
+network was trained to output (the model's predictive distribution, see
+:meth:`predictors.models.SocialRecurrent.sample`). ``<kind>+corr`` is the same with sigma multiplied by the
+``sample_scale`` tuned on val for best-of-20. For SDD,
 ``<kind>_sdd.pt`` is used if present, else ``<kind>_all.pt`` (trained on all ETH/UCY recordings: a
 cross-dataset result, flagged in the output). SDD glitch steps are not filtered.
 """
@@ -41,10 +45,11 @@ from predictors.data import SCENES, default_data_root, load_split
 from predictors.metrics import EVAL_SCENES, METRICS, Predictor, evaluate_one
 from predictors.models import MODEL_KINDS
 
-BASELINES: tuple[str, ...] = ("cvm", "cvm-s", "kalman", "dcvm")
+BASELINES: tuple[str, ...] = ("cvm", "cvm-s", "kalman", "dcvm", "k1-ref")
 SOCIAL_FORCE: tuple[str, ...] = ("sf", "sf-qlb", "sf-fit", "sf-fit-qlb")
+PERSISTENT: tuple[str, ...] = tuple(f"{k}+persist" for k in MODEL_KINDS)
 CORRELATED: tuple[str, ...] = tuple(f"{k}+corr" for k in MODEL_KINDS)
-ALL_MODELS: tuple[str, ...] = (*BASELINES, *SOCIAL_FORCE, *MODEL_KINDS, *CORRELATED)
+ALL_MODELS: tuple[str, ...] = (*BASELINES, *SOCIAL_FORCE, *MODEL_KINDS, *PERSISTENT, *CORRELATED)
 
 
 def make_predictor(
@@ -52,12 +57,17 @@ def make_predictor(
 ) -> tuple[Predictor | None, str]:
     """A function ``(obs, seq_start_end, k, generator) -> (most_likely, samples)`` and its source label.
 
-    ``data_root`` is needed by ``dcvm``, which is tuned on the scene's val split here.
+    ``data_root`` is needed by ``dcvm`` and ``k1-ref``, which are tuned on the scene's val split here.
     """
-    if name == "dcvm":
+    if name in ("dcvm", "k1-ref"):
         if data_root is None:
-            raise ValueError("dcvm needs the data root to tune on the val split")
-        p, _ = damped.tune(load_split(data_root, scene, "val"))
+            raise ValueError(f"{name} needs the data root to tune on the val split")
+        val = load_split(data_root, scene, "val")
+        if name == "k1-ref":
+            p, _ = damped.tune_k1(val)
+            label = "cvm" if p.damping == 1.0 else f"d={p.damping:g}"
+            return (lambda o, s, k, g: (p.predict(o), p.predict(o)[None].expand(k, -1, -1, -1))), label
+        p, _ = damped.tune(val)
         return (lambda o, s, k, g: (p.predict(o), p.sample(o, k, g))), f"d={p.damping:g} s={p.spread:g}"
     if name in SOCIAL_FORCE:
         fitted = name.startswith("sf-fit")
@@ -77,12 +87,13 @@ def make_predictor(
     if name == "kalman":
         return (lambda o, s, k, g: (kalman_predict(o), kalman_samples(o, k, g))), "-"
     kind, _, variant = name.partition("+")
-    mode = "correlated" if variant == "corr" else "autoregressive"
+    mode = "autoregressive" if not variant else "correlated"
+    scale = 1.0 if variant == "persist" else None
     path = weights_for(kind, scene, weights_dir)
     if path is None:
         return None, "no weights"
     model = load_model(path)
-    return (lambda o, s, k, g: (model.predict(o, s), model.sample(o, s, k, g, mode))), path.name
+    return (lambda o, s, k, g: (model.predict(o, s), model.sample(o, s, k, g, mode, scale))), path.name
 
 
 def run(
@@ -136,7 +147,7 @@ def to_markdown(res: dict[str, object]) -> str:
         "k1": "Most likely (K = 1)",
         "ped20": "Best-of-20, per pedestrian (ADE and FDE minimised separately)",
         "scene20": "Best-of-20, per scene (Social-GAN `evaluate_model.py` style)",
-        "es": "Energy score of the 20 samples (m, lower is better; proper scoring rule)",
+        "es": "Energy score of the 20 samples (fair form; m, lower is better; proper scoring rule)",
     }
     results: dict[str, dict[str, dict]] = res["results"]  # type: ignore[assignment]
     cols = [*SCENES, "avg", "sdd"]

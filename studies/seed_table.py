@@ -199,7 +199,7 @@ def main(argv: list[str] | None = None) -> int:
         err = f"studies.seed_table: error: --models/--baseline: {missing} not in any file"
         print(err, file=sys.stderr)
         return 2
-    baselines = [b for b in ("cvm", "cvm-s", "kalman", "dcvm") if b in present and b not in models]
+    baselines = [b for b in ("cvm", "cvm-s", "kalman", "dcvm", "k1-ref") if b in present and b not in models]
     print(summary(runs, [*baselines, *models]))
     if a.summary_only:
         return 0

@@ -18,6 +18,7 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -113,10 +114,48 @@ def predictors_for_sim(data_root: Path) -> dict[str, object]:
     return rows
 
 
+def measure(names: list[str], episodes: int, seed: int, data_root: Path) -> dict[str, Any]:
+    """Record the episodes, cut the windows and score every row: the JSON-ready result."""
+    from predictors.metrics import evaluate_one
+
+    if episodes < 1:
+        raise ValueError(f"--episodes must be >= 1, got {episodes}")
+    torch.set_num_threads(1)
+    w = simulated_windows(names, episodes, seed)
+    if w.num_windows == 0:
+        raise ValueError("no window with >= 2 pedestrians for 8 s")
+    res: dict[str, Any] = {"scenarios": names, "episodes": episodes, "seed": seed}
+    res["counts"] = [w.num_windows, w.num_peds]
+    res["results"] = {
+        name: evaluate_one(fn, w, 20, seed) for name, fn in predictors_for_sim(data_root).items()
+    }
+    return res
+
+
+def render(res: dict[str, Any]) -> str:
+    """The markdown table of a :func:`measure` result."""
+    n, peds = res["counts"]
+    lines = [
+        f"Simulated windows: {n} / pedestrian instances {peds} ({', '.join(res['scenarios'])},"
+        f" {res['episodes']} episodes each, seeds {res['seed']}..{res['seed'] + res['episodes'] - 1})",
+        "",
+        "| Predictor | K=1 ADE/FDE | best-of-20 per ped | best-of-20 per scene | energy score |",
+        "|---|---|---|---|---|",
+    ]
+    order = ["cvm", "cvm-s", "kalman", "dcvm (zara1 val)", "sf", "sf-qlb", "s-cgru_all (wrapper)"]
+    names = sorted(res["results"], key=lambda n: (order.index(n) if n in order else len(order), n))
+    for name in names:  # a fixed order: the stored JSON has sorted keys
+        r = res["results"][name]
+        lines.append(
+            f"| {name} | {r['k1'][0]:.2f}/{r['k1'][1]:.2f} | {r['ped20'][0]:.2f}/{r['ped20'][1]:.2f}"
+            f" | {r['scene20'][0]:.2f}/{r['scene20'][1]:.2f} | {r['es'][0]:.2f} |"
+        )
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Console entry point: record, score and print a markdown table (JSON with ``--save``)."""
     from predictors.data import default_data_root
-    from predictors.metrics import evaluate_one
 
     p = argparse.ArgumentParser(prog="python -m studies.sim_transfer", description=__doc__.splitlines()[0])
     p.add_argument("--scenarios", default="busy_zebra,zebra_case1")
@@ -125,33 +164,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--data", default="")
     p.add_argument("--save", default="")
     a = p.parse_args(argv)
-    torch.set_num_threads(1)
+    root = Path(a.data) if a.data else default_data_root()
     try:
-        if a.episodes < 1:
-            raise ValueError(f"--episodes must be >= 1, got {a.episodes}")
-        names = [s for s in a.scenarios.split(",") if s]
-        w = simulated_windows(names, a.episodes, a.seed)
+        res = measure([s for s in a.scenarios.split(",") if s], a.episodes, a.seed, root)
     except (ValueError, FileNotFoundError) as exc:
         print(f"studies.sim_transfer: error: {exc}", file=sys.stderr)
         return 2
-    if w.num_windows == 0:
-        print("studies.sim_transfer: error: no window with >= 2 pedestrians for 8 s", file=sys.stderr)
-        return 2
-    root = Path(a.data) if a.data else default_data_root()
-    res: dict[str, object] = {"scenarios": names, "episodes": a.episodes, "seed": a.seed}
-    res["counts"] = [w.num_windows, w.num_peds]
-    scores = {name: evaluate_one(fn, w, 20, a.seed) for name, fn in predictors_for_sim(root).items()}
-    res["results"] = scores
     if a.save:
         write_text_atomic(Path(a.save), json.dumps(res, indent=1))
-    print(f"Simulated windows: {w.num_windows} / pedestrian instances {w.num_peds} ({', '.join(names)})\n")
-    print("| Predictor | K=1 ADE/FDE | best-of-20 per ped | best-of-20 per scene | energy score |")
-    print("|---|---|---|---|---|")
-    for name, r in scores.items():
-        print(
-            f"| {name} | {r['k1'][0]:.2f}/{r['k1'][1]:.2f} | {r['ped20'][0]:.2f}/{r['ped20'][1]:.2f}"
-            f" | {r['scene20'][0]:.2f}/{r['scene20'][1]:.2f} | {r['es'][0]:.2f} |"
-        )
+    print(render(res))
     return 0
 
 

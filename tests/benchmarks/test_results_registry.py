@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from benchmarks import results
+from tests.conftest import data_root
 
 
 @pytest.fixture(scope="module")
@@ -19,6 +20,8 @@ def fingerprint() -> str:
 @pytest.mark.parametrize("name", sorted(results.ENTRIES))
 def test_every_rendered_table_equals_its_json(name: str, fingerprint: str) -> None:
     entry = results.ENTRIES[name]
+    if entry.fingerprint is not None and not (data_root() / "eth_ucy").is_dir():
+        pytest.skip(f"{name}'s fingerprint evaluates on ETH/UCY, not found at {data_root()}")
     assert results.committed_block(entry) == results.rendered_block(entry, fingerprint), (
         f"{entry.document.name}: the {name} block differs from {entry.json_path.name};"
         f" run `python -m benchmarks.results --render` (or re-measure: `python -m benchmarks.results {name}`)"
@@ -50,3 +53,40 @@ def test_a_table_measured_on_other_behaviour_is_marked_stale(tmp_path: Path) -> 
 
 def test_fingerprint_is_deterministic(fingerprint: str) -> None:
     assert results.behaviour_fingerprint() == fingerprint
+
+
+def test_one_measurement_feeds_both_predictor_blocks(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`predictors` and `predictors_summary` share a JSON: measured once, stored under the entry's own
+    fingerprint (not the behaviour's), and each block goes stale when that fingerprint changes."""
+    calls = []
+
+    def fake_measure() -> dict[str, object]:
+        calls.append(1)
+        return {"value": 1.5}
+
+    monkeypatch.setattr(results, "RESULTS_DIR", tmp_path)
+    monkeypatch.setattr(results, "behaviour_fingerprint", lambda: "b" * 16)
+    monkeypatch.setattr(results, "source_commit", lambda: "c" * 40)
+    own = ["f" * 16]
+    entries = {}
+    for name in ("predictors", "predictors_summary"):
+        doc = tmp_path / f"{name}.md"
+        doc.write_text(f"# x\n<!-- results:{name} -->\nold\n<!-- /results:{name} -->\n", encoding="utf-8")
+        entries[name] = dataclasses.replace(
+            results.ENTRIES[name],
+            measure=fake_measure,
+            render=lambda d, tag=name: f"{tag}: {d['value']}",
+            document=doc,
+            fingerprint=lambda: own[0],
+        )
+    monkeypatch.setattr(results, "ENTRIES", entries)
+    assert results.main(["predictors", "predictors_summary"]) == 0
+    assert len(calls) == 1
+    data = json.loads((tmp_path / "predictors.json").read_text(encoding="utf-8"))
+    assert data["fingerprint"] == "f" * 16 and data["name"] == "predictors"
+    assert results.committed_block(entries["predictors_summary"]) == "predictors_summary: 1.5"
+    assert results.main(["--check"]) == 0
+    own[0] = "0" * 16  # the weights or the evaluation changed: both blocks are now stale
+    for entry in entries.values():
+        assert results.rendered_block(entry, "b" * 16).startswith("> **Stale:**")
+    assert results.main(["--check"]) == 1

@@ -5,7 +5,7 @@ import pytest
 import torch
 
 from predictors.baselines import cvm
-from predictors.damped import DampedCVM, tune
+from predictors.damped import DampedCVM, tune, tune_k1
 from predictors.data import Windows
 
 
@@ -52,3 +52,22 @@ def test_bad_parameters_are_refused() -> None:
         DampedCVM(-0.1, 0.05)
     with pytest.raises(ValueError, match="spread"):
         DampedCVM(0.9, -1.0)
+
+
+def test_tune_k1_picks_the_damping_of_the_data_for_the_most_likely_path() -> None:
+    best, ade = tune_k1(_walkers(400, 0.83))
+    assert best.damping == pytest.approx(0.83) and best.spread == 0.0 and ade < 1e-5
+    cvm_wins, _ = tune_k1(_walkers(400, 1.0))
+    assert cvm_wins.damping == 1.0  # plain CVM is a candidate, and wins on undamped walkers
+
+
+def test_tune_k1_ignores_the_spread_that_best_of_20_rewards() -> None:
+    """Noisy futures: best-of-20 may prefer another damping, K = 1 takes the one closest in mean."""
+    w = _walkers(600, 0.9, seed=3)
+    rng = np.random.default_rng(4)
+    w.traj[:, 8:] += np.cumsum(rng.normal(0.0, 0.05, w.traj[:, 8:].shape), axis=1).astype(np.float32)
+    best, ade = tune_k1(w)
+    obs, fut = torch.as_tensor(w.traj[:, :8]), torch.as_tensor(w.traj[:, 8:])
+    for d in (best.damping - 0.05, best.damping + 0.05):
+        other = float((DampedCVM(min(d, 1.0), 0.0).predict(obs) - fut).norm(dim=-1).mean())
+        assert other >= ade - 1e-6

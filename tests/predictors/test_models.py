@@ -365,3 +365,16 @@ def test_shipped_s_cgru_fast_path_matches_torch_model() -> None:
         ref = m.predict(obs, torch.tensor([[0, 12]])).numpy()
     fast = FastPredictor(m)
     assert abs(fast.predict(obs.numpy()) - ref).max() < 1e-4
+
+
+def test_scale_overrides_the_val_tuned_sample_scale() -> None:
+    """``scale=1.0`` draws from the learned sigma itself, whatever ``sample_scale`` the checkpoint holds."""
+    torch.manual_seed(0)
+    obs, _, sse = _scene()
+    tuned = SocialRecurrent(ModelConfig(kind="lstm", hidden_size=16, embed_size=8, sample_scale=0.25))
+    with torch.no_grad():
+        mean = tuned.predict(obs, sse)
+        at_one = tuned.sample(obs, sse, 6, torch.Generator().manual_seed(5), "correlated", scale=1.0)
+        default = tuned.sample(obs, sse, 6, torch.Generator().manual_seed(5), "correlated")
+        torch.testing.assert_close(default - mean, 0.25 * (at_one - mean), rtol=1e-4, atol=1e-6)
+        assert float((at_one - mean).abs().max()) > 0.0

@@ -4,6 +4,7 @@ import json
 from pathlib import Path
 
 import pytest
+import torch
 
 from predictors.metrics import METRICS
 from studies import evaluate
@@ -24,6 +25,19 @@ def test_dagger_footnote_only_when_a_cell_carries_it() -> None:
 def test_unknown_variant_and_every_model_name_parse() -> None:
     assert "s-cgru+corr" in evaluate.ALL_MODELS and "dcvm" in evaluate.ALL_MODELS
     assert "sf-qlb" in evaluate.ALL_MODELS
+    assert "k1-ref" in evaluate.ALL_MODELS and "s-cgru+persist" in evaluate.ALL_MODELS
+
+
+def test_k1_reference_is_a_point_forecast_tuned_on_val(data_root: Path) -> None:
+    pred, label = evaluate.make_predictor("k1-ref", "eth", Path("unused"), data_root)
+    assert pred is not None and label == "cvm"  # synthetic walkers keep their speed: no damping helps
+    w = evaluate.load_split(data_root, "eth", "test")
+    obs = torch.as_tensor(w.traj[:, :8])
+    sse = torch.as_tensor(w.seq_start_end)
+    ml, samples = pred(obs, sse, 4, torch.Generator().manual_seed(0))
+    torch.testing.assert_close(samples, ml[None].expand(4, -1, -1, -1))
+    with pytest.raises(ValueError, match="data root"):
+        evaluate.make_predictor("k1-ref", "eth", Path("unused"))
 
 
 def test_evaluate_cli_json_on_synthetic_data(data_root: Path, capsys: pytest.CaptureFixture) -> None:
