@@ -13,7 +13,8 @@ File layout (every entry an array):
 - ``weight/<i>``, ``bias/<i>``: the actor's linear layers in order (tanh between them, none after the last),
   whose output is the Gaussian's mean action, clipped to [−1, 1] (the greedy action);
 - ``shielded``: whether the policy was trained to act through `agents.shield.YieldingShield` (the registry
-  then deploys it through the shield, as it was trained).
+  then deploys it through the shield, as it was trained); ``residual_scale``: 0, or the m/s² per unit of
+  action of a policy trained as a residual on the rule's acceleration (`YieldingShield.apply`).
 """
 
 from __future__ import annotations
@@ -54,6 +55,8 @@ class MLPWeights:
     """(weight (out, in), bias (out,)) of each linear layer."""
     shielded: bool
     """Deploy through the yielding shield."""
+    residual_scale: float = 0.0
+    """> 0: the action is a residual on the rule's acceleration, this many m/s² per unit."""
 
 
 def load_mlp(path: str | Path) -> MLPWeights:
@@ -101,6 +104,7 @@ def load_mlp(path: str | Path) -> MLPWeights:
         epsilon=float(arrays["epsilon"]),
         layers=tuple(layers),
         shielded=bool(arrays["shielded"]),
+        residual_scale=float(arrays["residual_scale"]) if "residual_scale" in arrays else 0.0,
     )
 
 
@@ -140,7 +144,9 @@ class MLPPolicy:
         """Stateless: nothing to reset."""
 
 
-def export_sb3(model: Any, vec_normalize: Any, path: str | Path, *, shielded: bool = False) -> Path:
+def export_sb3(
+    model: Any, vec_normalize: Any, path: str | Path, *, shielded: bool = False, residual_scale: float = 0.0
+) -> Path:
     """Write an SB3 ``MultiInputPolicy`` actor with tanh MLP and its VecNormalize statistics as a policy file.
 
     Only the parts that act are written: the actor's layers (``mlp_extractor.policy_net`` then
@@ -165,6 +171,7 @@ def export_sb3(model: Any, vec_normalize: Any, path: str | Path, *, shielded: bo
         arrays[f"weight/{i}"] = state[f"{name}.weight"].astype(np.float32)
         arrays[f"bias/{i}"] = state[f"{name}.bias"].astype(np.float32)
     arrays["shielded"] = np.array(bool(shielded))
+    arrays["residual_scale"] = np.array(float(residual_scale))
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".partial.npz")

@@ -215,7 +215,8 @@ def mlp_policy(path: str | Path, scenario: ScenarioConfig | None = None, dt: flo
     if not learned.weights.shielded:
         return learned
     cfg = YieldingConfig() if scenario is None else replace(YieldingConfig(), **scenario_settings(scenario))
-    return ShieldedPolicy(learned, YieldingShield(cfg if dt is None else replace(cfg, dt=float(dt))))
+    shield = YieldingShield(cfg if dt is None else replace(cfg, dt=float(dt)))
+    return ShieldedPolicy(learned, shield, learned.weights.residual_scale)
 
 
 def _mlp_entry(spec: str) -> PolicyEntry:

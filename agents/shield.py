@@ -60,10 +60,17 @@ class YieldingShield:
         rule = stop_acceleration(view, target, b, cfg.stop_gain, cfg.ego.max_deceleration)
         return np.where(np.isfinite(target), np.maximum(profile, rule), np.inf)
 
+    def rule_and_limit(self, view: View) -> tuple[np.ndarray, np.ndarray]:
+        """(B,) each: the rule's acceleration and the envelope's limit (m/s²); advances the timers once."""
+        legal, conflict = self.rule._targets(view)
+        return self.rule._acceleration_for(view, legal, conflict), self._limit(view, legal, conflict)
+
     def limit_from_view(self, view: View) -> np.ndarray:
         """(B,) the largest acceleration (m/s²) the envelope allows now; advances the rule's timers."""
+        return self.rule_and_limit(view)[1]
+
+    def _limit(self, view: View, legal: np.ndarray, conflict: np.ndarray) -> np.ndarray:
         cfg = self.config
-        legal, conflict = self.rule._targets(view)
         # The speed limit, less 0.01 m/s: the float32 action must not round the car over it.
         speed_cap = (cfg.speed_limit - 0.01 - view.speed) / cfg.dt
         caps = np.minimum(
@@ -77,14 +84,26 @@ class YieldingShield:
         """(B,) the largest acceleration (m/s²) the envelope allows for `obs`; advances the rule's timers."""
         return self.limit_from_view(parse_observation(obs))
 
-    def apply(self, action: Any, obs: ObsLike) -> tuple[np.ndarray, bool]:
-        """(shielded normalised action of shape (1,), whether the shield changed it) for one observation."""
-        requested = float(np.clip(np.asarray(action, dtype=np.float64).reshape(-1)[0], -1.0, 1.0))
-        bound = float(self.limit(obs)[0])
-        wanted = float(action_to_acceleration(requested, self.config.ego))
-        if wanted <= bound:
-            return np.array([requested], dtype=np.float32), False
-        return acceleration_to_action(np.array([bound]), self.config.ego).reshape(1), True
+    def apply(self, action: Any, obs: ObsLike, residual_scale: float = 0.0) -> tuple[np.ndarray, bool]:
+        """(shielded normalised action of shape (1,), whether the shield changed it) for one observation.
+
+        With ``residual_scale = 0`` the action is the learned acceleration itself (normalised as the env's).
+        With ``residual_scale = s > 0`` it is a residual on the rule: the requested acceleration is the rule's
+        own plus ``s × action`` m/s², so an action of 0 drives exactly as `yielding` does, and the learned
+        part only has to find where to depart from it. Either way the envelope's limit caps the result.
+        """
+        u = float(np.clip(np.asarray(action, dtype=np.float64).reshape(-1)[0], -1.0, 1.0))
+        rule, bound = self.rule_and_limit(parse_observation(obs))
+        ego = self.config.ego
+        if residual_scale > 0.0:
+            wanted = float(np.clip(rule[0] + residual_scale * u, -ego.max_deceleration, ego.max_acceleration))
+            requested = acceleration_to_action(np.array([wanted]), ego).reshape(1)
+        else:
+            wanted = float(action_to_acceleration(u, ego))
+            requested = np.array([u], dtype=np.float32)
+        if wanted <= float(bound[0]):
+            return requested, False
+        return acceleration_to_action(np.array([bound[0]]), ego).reshape(1), True
 
 
 class ShieldedPolicy:
@@ -92,15 +111,17 @@ class ShieldedPolicy:
 
     uses_predictors = False
 
-    def __init__(self, learned: Policy, shield: YieldingShield) -> None:
+    def __init__(self, learned: Policy, shield: YieldingShield, residual_scale: float = 0.0) -> None:
         self.learned = learned
         self.shield = shield
+        self.residual_scale = residual_scale
+        """0: the learned action is the acceleration; > 0: a residual on the rule's (see `apply`)."""
         self.interventions = 0
         """Steps in which the shield replaced the learned action (since the last reset)."""
 
     def __call__(self, obs: ObsLike) -> np.ndarray:
         """The learned action, replaced by the envelope's limit when above it."""
-        action, changed = self.shield.apply(self.learned(obs), obs)
+        action, changed = self.shield.apply(self.learned(obs), obs, self.residual_scale)
         self.interventions += int(changed)
         return action
 
@@ -119,9 +140,12 @@ class ShieldAction(gym.Wrapper):
     own speed limit and geometry. ``info["shield"]`` is 1.0 in a step whose action the shield replaced.
     """
 
-    def __init__(self, env: gym.Env, make_config: Callable[[Any, float], YieldingConfig]) -> None:
+    def __init__(
+        self, env: gym.Env, make_config: Callable[[Any, float], YieldingConfig], residual_scale: float = 0.0
+    ) -> None:
         super().__init__(env)
         self.make_config = make_config
+        self.residual_scale = residual_scale
         self.shield: YieldingShield | None = None
         self._obs: Any = None
 
@@ -137,7 +161,7 @@ class ShieldAction(gym.Wrapper):
         """Step with the shielded action; ``info['shield']`` says whether it was replaced."""
         if self.shield is None:
             raise RuntimeError("ShieldAction.step before reset")
-        safe, changed = self.shield.apply(action, self._obs)
+        safe, changed = self.shield.apply(action, self._obs, self.residual_scale)
         obs, reward, terminated, truncated, info = self.env.step(safe)
         self._obs = obs
         return obs, reward, terminated, truncated, {**info, "shield": 1.0 if changed else 0.0}

@@ -429,8 +429,12 @@ class YieldingPolicy:
         return self._acceleration(view)
 
     def _acceleration(self, view: View) -> np.ndarray:
-        cfg = self.config
         legal, conflict = self._targets(view)
+        return self._acceleration_for(view, legal, conflict)
+
+    def _acceleration_for(self, view: View, legal: np.ndarray, conflict: np.ndarray) -> np.ndarray:
+        """The rule's acceleration for stop targets already computed by `_targets` (which advances timers)."""
+        cfg = self.config
         a = np.minimum(cruise(view, cfg), follow(view, cfg))
         a_legal = stop_acceleration(
             view, legal, cfg.comfortable_deceleration, cfg.stop_gain, cfg.ego.max_deceleration

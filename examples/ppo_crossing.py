@@ -63,6 +63,9 @@ class Args:
     """PPO-Lagrangian's budget d on the expected episode cost (`crossing_env.constrained.CostBudget`)."""
     lambda_lr: float = 0.05
     """Dual-ascent step of the Lagrange multiplier per rollout."""
+    residual: float = 0.0
+    """``shielded`` only: > 0 makes the action a residual on the rule's acceleration, this many m/s² per unit
+    (0: the action is the acceleration itself)."""
     scenarios: tuple[str, ...] = ()
     """Scenarios drawn per reset (empty: every built-in one)."""
     n_envs: int = 4
@@ -113,6 +116,12 @@ def parse_args(argv: list[str] | None = None) -> Args:
     )
     p.add_argument("--lambda-lr", type=float, default=d.lambda_lr, help="multiplier step per rollout")
     p.add_argument(
+        "--residual",
+        type=float,
+        default=d.residual,
+        help="shielded: action = rule + RESIDUAL x action (m/s^2)",
+    )
+    p.add_argument(
         "--scenarios", default="", help="comma-separated scenarios drawn per reset (default: all built-in)"
     )
     p.add_argument("--n-envs", type=positive, default=d.n_envs, help="parallel envs")
@@ -143,19 +152,27 @@ def parse_args(argv: list[str] | None = None) -> Args:
             p.error(f"argument --scenarios: unknown scenario {n!r}; built-in: {', '.join(builtin)}")
     if not 0.0 < a.gamma <= 1.0 or not a.learning_rate > 0:
         p.error(f"--gamma must be in (0, 1] and --learning-rate > 0, got {a.gamma!r}, {a.learning_rate!r}")
+    if (a.residual and a.algo != "shielded") or not a.residual >= 0:
+        p.error(f"--residual must be >= 0 and needs --algo shielded, got {a.residual!r} with {a.algo!r}")
     if not a.cost_budget >= 0 or not a.lambda_lr >= 0:
         p.error(f"--cost-budget and --lambda-lr must be >= 0, got {a.cost_budget!r}, {a.lambda_lr!r}")
     if a.subproc and a.algo == "ppo_lagrangian":
         p.error("--subproc: the Lagrange multiplier is shared in-process; run ppo_lagrangian without it")
     return Args(
-        a.timesteps, a.algo, a.cost_budget, a.lambda_lr, names, a.n_envs, a.subproc, a.n_steps,
+        a.timesteps, a.algo, a.cost_budget, a.lambda_lr, a.residual, names, a.n_envs, a.subproc, a.n_steps,
         a.batch_size, a.learning_rate, a.gamma,
         a.predictors, a.bc_steps, a.log_std_init, a.seed, a.eval_every, a.eval_episodes, a.out,
         not a.no_progress,
     )  # fmt: skip
 
 
-def make_env(scenarios: tuple[str, ...], predictors: bool, algo: str = "ppo", multiplier: Any = None) -> Any:
+def make_env(
+    scenarios: tuple[str, ...],
+    predictors: bool,
+    algo: str = "ppo",
+    multiplier: Any = None,
+    residual: float = 0.0,
+) -> Any:
     """One training env: a scenario drawn per reset, episode metrics in `info`, optional predictors.
 
     Stack (inner to outer): the env, `ScenarioMix` (scenario per reset, episode metrics), the shield
@@ -220,7 +237,9 @@ def make_env(scenarios: tuple[str, ...], predictors: bool, algo: str = "ppo", mu
         from agents import make_policy
         from agents.shield import ShieldAction
 
-        env = ShieldAction(env, lambda scenario, dt: make_policy("yielding", scenario=scenario, dt=dt).config)
+        env = ShieldAction(
+            env, lambda scenario, dt: make_policy("yielding", scenario=scenario, dt=dt).config, residual
+        )
     if algo == "ppo_lagrangian":
         from crossing_env.constrained import LagrangianReward
 
@@ -418,7 +437,8 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     multiplier = Multiplier(0.0) if args.algo == "ppo_lagrangian" else None
     fns = [
-        lambda: make_env(args.scenarios, args.predictors, args.algo, multiplier) for _ in range(args.n_envs)
+        lambda: make_env(args.scenarios, args.predictors, args.algo, multiplier, args.residual)
+        for _ in range(args.n_envs)
     ]
     venv = SubprocVecEnv(fns, start_method="forkserver") if args.subproc else DummyVecEnv(fns)
     venv.seed(args.seed)
@@ -447,9 +467,11 @@ def main(argv: list[str] | None = None) -> int:
     shielded = args.algo == "shielded"
     callbacks: list[Any] = [log.callback]
     if args.eval_every:
-        callbacks.append(EveryNTimesteps(args.eval_every, _Checkpoint(model, venv, args.out, shielded)))
+        callbacks.append(
+            EveryNTimesteps(args.eval_every, _Checkpoint(model, venv, args.out, shielded, args.residual))
+        )
     t0 = time.perf_counter()
-    _save(model, venv, args.out / "step_0.zip", shielded)
+    _save(model, venv, args.out / "step_0.zip", shielded, args.residual)
     try:
         model.learn(args.timesteps, callback=CallbackList(callbacks), progress_bar=args.progress)
     except KeyboardInterrupt:  # Ctrl-C stops training early; what was learnt is still saved and evaluated
@@ -462,7 +484,7 @@ def main(argv: list[str] | None = None) -> int:
         f" ({model.num_timesteps / train_s:.0f} steps/s), seed {args.seed},"
         f" {len(args.scenarios)} scenario(s){lam}"
     )
-    _save(model, venv, args.out / "model.zip", shielded)
+    _save(model, venv, args.out / "model.zip", shielded, args.residual)
     plot_learning_curve(args.out / "episodes.csv", args.out / "learning_curve.png")
     print(
         f"saved {args.out}/model.zip (+ model.vecnormalize.npz, model.policy.npz), episodes.csv,"
@@ -479,23 +501,23 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _save(model: Any, venv: Any, path: Path, shielded: bool) -> None:
+def _save(model: Any, venv: Any, path: Path, shielded: bool, residual: float = 0.0) -> None:
     """``NAME.zip`` (SB3), ``NAME.vecnormalize.npz`` (statistics), ``NAME.policy.npz`` (`agents.mlp`)."""
     from agents.mlp import export_sb3
     from agents.sb3 import save_stats
 
     model.save(path)
     save_stats(venv, path.with_suffix(".vecnormalize.npz"))
-    export_sb3(model, venv, path.with_suffix(".policy.npz"), shielded=shielded)
+    export_sb3(model, venv, path.with_suffix(".policy.npz"), shielded=shielded, residual_scale=residual)
 
 
-def _Checkpoint(model: Any, venv: Any, out: Path, shielded: bool) -> Any:
+def _Checkpoint(model: Any, venv: Any, out: Path, shielded: bool, residual: float = 0.0) -> Any:
     """Callback: saves ``step_N.zip`` + its statistics + its policy file at every call."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class _Save(BaseCallback):
         def _on_step(self) -> bool:
-            _save(model, venv, out / f"step_{self.num_timesteps}.zip", shielded)
+            _save(model, venv, out / f"step_{self.num_timesteps}.zip", shielded, residual)
             return True
 
     return _Save()

@@ -40,9 +40,15 @@ ALGOS = ("ppo_lagrangian", "shielded")
 SEEDS = (0, 1, 2)
 RECIPE = (
     "--timesteps", "50000", "--n-envs", "8", "--n-steps", "256", "--learning-rate", "1e-4",
-    "--bc-steps", "20000", "--log-std-init", "-1.5", "--eval-every", "10000", "--eval-episodes", "0",
+    "--eval-every", "10000", "--eval-episodes", "0",
 )  # fmt: skip
-"""Training settings shared by every run (plus ``--algo``, ``--seed``, ``--out``)."""
+"""Training settings shared by every run (plus ``--algo``, ``--seed``, ``--out`` and `LEARNER_RECIPE`)."""
+LEARNER_RECIPE = {
+    "ppo_lagrangian": ("--bc-steps", "20000", "--log-std-init", "-1.5"),
+    "shielded": ("--residual", "2", "--log-std-init", "-1"),
+}
+"""Per learner: PPO-Lagrangian starts from a 20,000-step imitation of `yielding` (behaviour cloning); the
+shielded learner is a residual on the rule (action 0 = `yielding`, ±2 m/s² per unit), so it needs none."""
 SELECTION_SEED = 777
 """Base seed of the selection and steps-to-safety episodes (`crossing-eval` defaults to 2024)."""
 EVALUATION_SEED = 2024
@@ -60,6 +66,7 @@ def train(runs: Path, algos: tuple[str, ...], seeds: tuple[int, ...]) -> dict[st
                 continue
             t0 = time.perf_counter()
             cmd = [sys.executable, str(REPO / "examples" / "ppo_crossing.py"), "--algo", algo, *RECIPE]
+            cmd += LEARNER_RECIPE[algo]
             cmd += ["--seed", str(seed), "--out", str(out), "--no-progress"]
             print(" ".join(cmd[1:]), file=sys.stderr)
             subprocess.run(cmd, check=True)
@@ -260,8 +267,14 @@ def analyse(runs: Path, figures: Path, episodes: int, check_episodes: int, worke
     # Yielding on the selection episodes: the safety reference of steps-to-safety.
     yield_sel = _evaluate(["yielding"], scenarios, check_episodes, SELECTION_SEED, workers)
     reference = {s: _scores([r for r in yield_sel if r.task.scenario == s]) for s in scenarios}
-    result: dict[str, Any] = {"recipe": list(RECIPE), "seeds": list(SEEDS), "check_episodes": check_episodes,
-                              "evaluation_episodes": episodes, "learners": {}}  # fmt: skip
+    result: dict[str, Any] = {
+        "recipe": list(RECIPE),
+        "learner_recipe": {k: list(v) for k, v in LEARNER_RECIPE.items()},
+        "seeds": list(SEEDS),
+        "check_episodes": check_episodes,
+        "evaluation_episodes": episodes,
+        "learners": {},
+    }
     chosen = {}
     for algo in ALGOS:
         per_seed = {}

@@ -14,6 +14,7 @@ from agents.config import YieldingConfig
 from agents.policy import FunctionPolicy
 from agents.registry import scenario_settings
 from agents.shield import ShieldAction, ShieldedPolicy, YieldingShield
+from agents.yielding import YieldingPolicy
 from crossing_env import ENV_ID
 from crossing_env.env import action_to_acceleration
 from crossing_env.observation import PEDESTRIANS_KEY, EgoColumn, PedestrianColumn
@@ -108,3 +109,32 @@ def test_shield_action_wrapper_reports_interventions():
         if terminated or truncated:
             break
     assert set(flags) == {0.0, 1.0}  # free on the open road, replaced before the crossing
+
+
+def test_a_zero_residual_drives_exactly_as_the_rule():
+    """Residual mode: action 0 asks for the rule's own acceleration, which its envelope always lets through
+    (up to the 0.01 m/s margin under the speed limit)."""
+    env = gym.make(ENV_ID, scenario="busy_zebra")
+    obs, _ = env.reset(seed=2)
+    rule = YieldingPolicy(CONFIG)
+    shield = YieldingShield(CONFIG)
+    replaced = 0
+    for _ in range(200):
+        expected = rule(obs)
+        action, changed = shield.apply(np.zeros(1, dtype=np.float32), obs, residual_scale=2.0)
+        replaced += changed
+        if not changed:
+            np.testing.assert_allclose(action, expected, atol=1e-6)
+        obs, _, terminated, truncated, _ = env.step(expected)
+        if terminated or truncated:
+            break
+    assert replaced <= 5  # only where the rule's cruise control touches the speed limit
+
+
+def test_a_positive_residual_is_capped_by_the_envelope_at_a_waiting_pedestrian():
+    """Full positive residual through the shield at a zebra still yields (no violation, no collision)."""
+    full = FunctionPolicy(lambda obs: np.ones(1, dtype=np.float32))
+    policy = ShieldedPolicy(full, YieldingShield(CONFIG), residual_scale=2.0)
+    result, interventions = _run(policy, "zebra_case1", 0)
+    assert result.yield_obligations > 0 and result.yield_violations == 0 and not result.collision
+    assert interventions > 0
