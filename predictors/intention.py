@@ -35,7 +35,7 @@ the carriageway (anywhere along it, crossing or starting to) at some moment with
 the event the oracle's intent to cross stands for. It is the same model evaluated over that horizon without
 the "before the ego has passed" cut (`crossing_intention` with ``ahead_only=False``), then Platt-calibrated
 (``sigmoid(a logit(p) + b)``, the two numbers per variant fitted on the training seeds by
-``python -m predictors.learned_intent_train`` and shipped in ``predictors/weights/learned_intent.json``).
+``python -m studies.train_learned_intent`` and shipped in ``predictors/weights/learned_intent.json``).
 They add ``"crossing_intent_bound"`` ``(1,)`` too: the variant's release risk bound from the same file (an
 intent at or below it may release a legal wait in `agents.predictive`).
 

@@ -8,7 +8,7 @@ slot from the observation and the static map only (no ground truth, no hidden st
 is relative to the kerb and the crossing, how it moves, whether its 3.2 s position history touched the road
 (someone who has just crossed), the ego's time to reach it and the gap to the first approaching car.
 
-The heads are fitted by ``python -m predictors.learned_intent_train`` on simulated ground truth from
+The heads are fitted by ``python -m studies.train_learned_intent`` on simulated ground truth from
 training seeds disjoint from every evaluation seed, and shipped as JSON (`learned_intent_weights`) with
 the release risk bound chosen there, which the wrapper publishes as ``crossing_intent_bound`` (1,). Fitted
 by maximum likelihood, the probabilities are calibrated on the training distribution;

@@ -1,6 +1,6 @@
 """Fit the learned intent model, the QLB / classical intent calibration and the release risk bound.
 
-    python -m predictors.learned_intent_train          # 8 training seeds per world, a few minutes on 2 cores
+    python -m studies.train_learned_intent          # 8 training seeds per world, a few minutes on 2 cores
 
 Data: episodes of `TRAIN_WORLDS` (the intention benchmark's three worlds and the zebra scenarios) on seeds
 ``seed .. seed + episodes - 1`` (default 0..7), disjoint from the benchmark's evaluation seeds
@@ -27,9 +27,7 @@ Writes ``predictors/weights/learned_intent.json`` and its sha256 manifest.
 
 from __future__ import annotations
 
-import argparse
 import json
-import time
 from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -358,7 +356,7 @@ def train(
         "seeds": [seeds[0], seeds[-1]],
         "max_steps": max_steps,
         "l2": L2,
-        "command": f"python -m predictors.learned_intent_train --episodes {episodes} --seed {seed}",
+        "command": f"python -m studies.train_learned_intent --episodes {episodes} --seed {seed}",
     }
     return fit_all(data, meta)
 
@@ -371,29 +369,3 @@ def write_weights(weights: dict[str, Any], path: Path = WEIGHTS_PATH) -> str:
     manifest = path.with_name(MANIFEST_PATH.name)
     write_text_atomic(manifest, json.dumps({path.name: digest}, indent=1) + "\n")
     return digest
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Train and write the shipped weights."""
-    parser = argparse.ArgumentParser(
-        prog="python -m predictors.learned_intent_train", description=__doc__.splitlines()[0]
-    )
-    parser.add_argument("--episodes", type=int, default=8, help="training seeds per world")
-    parser.add_argument("--seed", type=int, default=0, help="first training seed")
-    parser.add_argument("--out", type=Path, default=WEIGHTS_PATH, help="weights file to write")
-    args = parser.parse_args(argv)
-    if args.episodes < 1:
-        parser.error(f"--episodes must be >= 1, got {args.episodes}")
-    start = time.perf_counter()
-    weights = train(args.episodes, args.seed)
-    digest = write_weights(weights, args.out)
-    release = weights["release"]
-    print(
-        f"wrote {args.out.name} (sha256 {digest[:12]}…) in {time.perf_counter() - start:.0f} s;"
-        f" release bounds {json.dumps(release['models'])}"
-    )
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -1,7 +1,7 @@
 """The shipped learned-intent weights: one JSON file, checked against its own sha256 manifest, no pickle.
 
 ``predictors/weights/learned_intent.json`` holds everything fitted on the training seeds by
-``python -m predictors.learned_intent_train``: the logistic-regression heads of the learned model, the
+``python -m studies.train_learned_intent``: the logistic-regression heads of the learned model, the
 Platt calibration of the QLB and classical ``crossing_intent``, the rule baseline's rates and the release
 risk bound. ``learned_intent.sha256.json`` lists its sha256 (a separate manifest: the checkpoint manifest
 lists the ``.pt`` files only). Loading refuses a file whose bytes differ from the listed sum.
@@ -59,7 +59,7 @@ def read_weights(path: Path = WEIGHTS_PATH, manifest: Path | None = None) -> dic
     if expected != actual:
         raise IntentWeightsError(
             f"{path.name}: sha256 {actual[:12]}… does not match the manifest's {str(expected)[:12]}…;"
-            " restore it or regenerate it with `python -m predictors.learned_intent_train`"
+            " restore it or regenerate it with `python -m studies.train_learned_intent`"
         )
     weights = json.loads(data.decode("utf-8"))
     if weights.get("format") != FORMAT:
