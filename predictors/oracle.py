@@ -25,8 +25,11 @@ policy cannot tell them apart except by their accuracy.
   of the ego. `OracleTrajectory` also adds ``plan_paths`` (P, K, 12, 2): the same paths for each of the
   plans in ``plan_accelerations`` (P,) (m/s², each held over the 4.8 s horizon, the ego's speed kept
   within [0, speed limit]; default: go +1.5, keep 0, slow −2.5). The keep plan (0) reuses the
-  ``predicted_paths`` rollout; each other plan costs one more rollout per refresh. Between refreshes
-  the cached plan rollouts are read at the time offset, exact only for an ego that followed that plan.
+  ``predicted_paths`` rollout; each other plan costs one more rollout every `plan_refresh_steps` (default
+  4, as the keep plan: the rollouts dominate an oracle episode's cost, but refreshing the plans every 8
+  steps brought the chatter back on a signalised_red_light dev episode, 8 sign changes against 4). Between
+  refreshes the cached plan rollouts are read at the time offset, exact only for an ego that followed
+  that plan.
   `agents.predictive` scores the plans with them (`agents.plans`).
 """
 
@@ -166,10 +169,13 @@ class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         self,
         env: gym.Env,
         refresh_steps: int = 4,
+        plan_refresh_steps: int = 4,
         plan_accelerations: tuple[float, ...] = DEFAULT_PLANS,
     ) -> None:
         plans = tuple(float(a) for a in plan_accelerations)
-        gym.utils.RecordConstructorArgs.__init__(self, refresh_steps=refresh_steps, plan_accelerations=plans)
+        gym.utils.RecordConstructorArgs.__init__(
+            self, refresh_steps=refresh_steps, plan_refresh_steps=plan_refresh_steps, plan_accelerations=plans
+        )
         gym.ObservationWrapper.__init__(self, env)
         space = env.observation_space
         hist = space.spaces.get(PEDESTRIAN_HISTORY_KEY) if isinstance(space, spaces.Dict) else None
@@ -183,7 +189,13 @@ class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
             )
         if not all(np.isfinite(plans)):
             raise ValueError(f"OracleTrajectory: plan accelerations must be finite, got {plans}")
+        if not (isinstance(plan_refresh_steps, int) and plan_refresh_steps >= 1):
+            raise ValueError(
+                f"OracleTrajectory: plan_refresh_steps must be an integer >= 1, got {plan_refresh_steps!r}"
+            )
         self.refresh_steps = refresh_steps
+        self.plan_refresh_steps = plan_refresh_steps
+        """Env steps between rollouts of the moving plans (each costs one rollout per refresh)."""
         self.plans = plans
         """Ego accelerations (m/s²) of the plans whose futures go into ``plan_paths`` (empty: no key)."""
         self.num_slots = hist.shape[0]
@@ -200,7 +212,8 @@ class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
             new[PLAN_ACCELERATIONS_KEY] = spaces.Box(-np.inf, np.inf, (len(plans),), np.float32)
         self.observation_space = spaces.Dict(new)
         self._cache: tuple[int, np.ndarray, np.ndarray] | None = None  # (start step, ids, positions)
-        self._plan_cache: list[tuple[np.ndarray, np.ndarray]] = []  # (ids, positions) per plan
+        self._plan_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}  # plan → (ids, positions)
+        self._plan_start = 0
         self.rollouts = 0
         """Rollouts run so far (each copies the world and steps it 4.8 s + refresh ahead)."""
 
@@ -209,6 +222,7 @@ class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
     ) -> tuple[Any, dict[str, Any]]:
         """Reset the env and forget the cached rollout."""
         self._cache = None
+        self._plan_cache = {}
         return super().reset(seed=seed, options=options)
 
     def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -233,20 +247,34 @@ class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
                 or offset < 0
                 or not np.all(cache[1][offset, p] == want)
             ):
-                steps = PRED_LEN * every + self.refresh_steps - 1
-                ids, pos = rollout_pedestrians(world, steps)
+                ids, pos = rollout_pedestrians(world, PRED_LEN * every + self.refresh_steps - 1)
                 self._cache = cache = (step, ids, pos)
-                # Each plan's world starts from the same state (and a copy of the same generator).
-                self._plan_cache = [
-                    (ids, pos) if a == 0.0 else rollout_pedestrians(world, steps, a) for a in self.plans
-                ]
-                self.rollouts += 1 + sum(a != 0.0 for a in self.plans)
+                self.rollouts += 1
                 offset = 0
             _, ids, pos = cache
-            rows = offset + every * np.arange(1, PRED_LEN + 1)  # (12,)
+            moving = [a for a in self.plans if a != 0.0]
+            start = self._plan_start
+            plan_offset = step - start
+            if moving and (
+                not self._plan_cache
+                or plan_offset >= self.plan_refresh_steps
+                or plan_offset < 0
+                or not all(np.all(c[0][plan_offset, p] == want) for c in self._plan_cache.values())
+            ):
+                # Each plan's world starts from the same state (and a copy of the same generator).
+                steps = PRED_LEN * every + self.plan_refresh_steps - 1
+                self._plan_cache = {a: rollout_pedestrians(world, steps, a) for a in moving}
+                self._plan_start = step
+                self.rollouts += len(moving)
+                plan_offset = 0
             ego = world.ego_position
-            jobs = [(paths, (ids, pos)), *zip(plan_paths, self._plan_cache, strict=True)]
-            for target, (plan_ids, positions) in jobs:
+            jobs = [(paths, ids, pos, offset)]
+            for target, a in zip(plan_paths, self.plans, strict=True):
+                jobs.append(
+                    (target, ids, pos, offset) if a == 0.0 else (target, *self._plan_cache[a], plan_offset)
+                )
+            for target, plan_ids, positions, at in jobs:
+                rows = at + every * np.arange(1, PRED_LEN + 1)  # (12,)
                 future = positions[rows][:, p]  # (12, n, 2)
                 alive = plan_ids[rows][:, p] == want[None, :]  # one who leaves keeps its last position
                 for j in range(1, PRED_LEN):
