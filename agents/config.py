@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from scenarios.config import EgoConfig
+from crossing_env.safety.results import MetricsConfig
+from scenarios.config import EgoConfig, RewardConfig
 
 
 @dataclass(frozen=True)
@@ -164,6 +165,22 @@ class PredictiveYieldingConfig(YieldingConfig):
     """Predicted paths replace constant velocity in the conflict check, except that a pedestrian whom
     constant velocity puts in the ego's lane corridor within this time (s) still counts: the paths come
     from 0.4 s histories and lag a sudden run."""
+    use_plans: bool = True
+    """With ``plan_paths`` in the observation (the path oracle's plan-conditioned futures), choose a plan
+    each step by scoring the candidates against their own forecasts (`agents.plans`), check conflicts on
+    the chosen plan's paths, and cap the acceleration at a keep or slow plan's. The legal rules still hold."""
+    plan_weights: RewardConfig = field(default_factory=RewardConfig)
+    """Weights of the reward terms that score a plan (progress, collision, near_miss, hard_braking: the
+    env's own reward weights by default)."""
+    plan_metrics: MetricsConfig = field(default_factory=MetricsConfig)
+    """Thresholds of the scored terms: `serious_ttc` (near miss) and `hard_braking_threshold`, the
+    evaluation's own by default."""
+    plan_switch_margin: float = 0.1
+    """Hysteresis: switch to a better plan only if it scores at least this much higher (reward units; 0.1
+    = 2 m of progress at the default weights)."""
+    plan_min_hold: float = 1.0
+    """Hysteresis: keep a plan at least this long (s) before switching to a better one, unless the plan
+    held forecasts a collision (then any better plan takes over at once)."""
 
 
 @dataclass(frozen=True)

@@ -30,6 +30,15 @@ variant lets a confident prediction *release* it, within the law, and trusts pre
   `constant_velocity_guard` seconds (paths built from 0.4 s histories lag a child who starts to run: a
   first grid run without the guard hit one in children_running with CVM and S-CGRU paths).
 
+- **Plans scored against plan-conditioned forecasts.** Where ``plan_paths`` exist (the path oracle's
+  futures under each candidate plan: go, keep, slow), every step each plan is scored by driving it against
+  its own forecast with the reward's terms (`agents.plans`), one is chosen with hysteresis (a switching
+  margin and a minimum hold time, lifted when the plan held forecasts a collision), the conflict check runs
+  on the chosen plan's paths, and a keep or slow plan caps the acceleration. The prediction and the
+  car's intent are then consistent: with paths for a car that holds its speed, the car that chose its
+  speed on them chattered (a dev run: −8 / +2 m/s² alternating for 9 s on signalised_red_light). The
+  legal rules and the constant-velocity guard still hold: a plan only chooses among safe speeds.
+
 With no predictor (no ``crossing_intention``, no ``predicted_paths``) it is exactly `YieldingPolicy`:
 conservative, ready to give way to anyone at the kerb by a zebra who is not walking away. Registered as
 ``predictive_yielding`` next to ``yielding`` rather than replacing it, so the value-of-prediction table can
@@ -38,14 +47,17 @@ compare the two on the same seeds and the established policy's figures stay what
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import ClassVar
 
 import numpy as np
 
 from agents.config import PredictiveYieldingConfig
+from agents.plans import choose_plans, score_plans
 from agents.view import ObsLike, View
 from agents.yielding import YieldingPolicy
 from predictors.learned_intent_weights import CROSSING_INTENT_BOUND_KEY
+from predictors.oracle import PLAN_ACCELERATIONS_KEY, PLAN_PATHS_KEY
 
 
 class PredictiveYielding(YieldingPolicy):
@@ -59,11 +71,63 @@ class PredictiveYielding(YieldingPolicy):
         super().__init__(config or PredictiveYieldingConfig())
         self.config: PredictiveYieldingConfig
         self._bound: np.ndarray | None = None
+        self._plan_paths: np.ndarray | None = None
+        self._plan_acc: np.ndarray | None = None
+
+    def reset(self, seed: int | None = None) -> None:
+        """Forget the yielding state and the plan being held."""
+        super().reset(seed)
+        self._plan = np.zeros(0, dtype=np.int64)
+        self._held = np.zeros(0)
+        self._plan_to_stop = np.zeros(0)
+        self._legal = np.zeros(0)
+        self.plan_history: list[np.ndarray] = []
+        """Chosen plan index (B,) per call since `reset` (for tests and diagnostics)."""
 
     def _read_bound(self, obs: ObsLike) -> None:
-        """Keep the predictor's release bound (B, 1) of this observation, if it publishes one."""
-        bound = obs.get(CROSSING_INTENT_BOUND_KEY) if hasattr(obs, "get") else None
+        """Keep the predictor's release bound (B, 1) and the plan forecasts of this observation, if any."""
+        get = obs.get if hasattr(obs, "get") else (lambda _key: None)
+        bound = get(CROSSING_INTENT_BOUND_KEY)
         self._bound = None if bound is None else np.asarray(bound, dtype=np.float64).reshape(-1, 1)
+        paths, acc = get(PLAN_PATHS_KEY), get(PLAN_ACCELERATIONS_KEY)
+        if paths is None or acc is None or not self.config.use_plans:
+            self._plan_paths = self._plan_acc = None
+            return
+        acc = np.asarray(acc, dtype=np.float64)
+        p = acc.shape[-1]
+        self._plan_acc = acc.reshape(-1, p)[0]  # the same plans for every batch element
+        paths = np.asarray(paths, dtype=np.float64)
+        self._plan_paths = paths.reshape(-1, p, *paths.shape[-3:])  # (B, P, K, T, 2)
+
+    def _acceleration(self, view: View) -> np.ndarray:
+        if self._plan_paths is None or self._plan_acc is None:
+            return super()._acceleration(view)
+        cfg = self.config
+        b = view.speed.shape[0]
+        if self._plan.shape != (b,):
+            self._plan = np.full(b, -1, dtype=np.int64)
+            self._held = np.zeros(b)
+            self._plan_to_stop = np.full(b, np.inf)
+            self._legal = np.full(b, np.inf)
+        fresh = view.to_stop > self._plan_to_stop + 0.5  # a vector env restarted this element's episode
+        self._plan_to_stop = view.to_stop.copy()
+        self._plan[fresh] = -1
+        # The legal stop of the previous step (0.1 s old, less the distance since): the rules compute it
+        # together with the conflict check, which needs the chosen plan's paths.
+        stop = np.where(fresh, np.inf, self._legal - view.speed * cfg.dt)
+        stop = np.where(stop > -0.3, np.maximum(stop, 0.0), np.inf)
+        start = np.stack([view.px, view.py], axis=-1)
+        score, hazard = score_plans(
+            view.speed, self._plan_acc, self._plan_paths, view.present, cfg, stop, start
+        )
+        chosen = choose_plans(score, hazard, self._plan, self._held, cfg)
+        self._held = np.where(chosen == self._plan, self._held + cfg.dt, cfg.dt)
+        self._plan = chosen
+        self.plan_history.append(chosen.copy())
+        paths = self._plan_paths[np.arange(b), chosen]
+        a = super()._acceleration(replace(view, paths=paths))
+        cap = self._plan_acc[chosen]
+        return np.where(cap <= 0.0, np.minimum(a, cap), a)
 
     def release_bound(self) -> np.ndarray | float:
         """The release threshold in force: the predictor's published bound, else `release_threshold`."""
@@ -78,6 +142,12 @@ class PredictiveYielding(YieldingPolicy):
         """Normalised action(s); reads the predictor's release bound first."""
         self._read_bound(obs)
         return super().__call__(obs)
+
+    def _targets(self, view: View) -> tuple[np.ndarray, np.ndarray]:
+        legal, conflict = super()._targets(view)
+        if self._legal.shape == legal.shape:
+            self._legal = legal.copy()  # remembered for the next step's plan scoring
+        return legal, conflict
 
     def _visible_duty(self, view: View, kerb_gap: np.ndarray) -> np.ndarray:
         """(B, K) pedestrians whose wish to cross the car can see: on the road, or stepping towards it."""

@@ -21,6 +21,16 @@ policy cannot tell them apart except by their accuracy.
   busy zebra's pools) and steps it 4.8 s ahead, so it runs every `refresh_steps` env steps (default 4 =
   0.4 s) and in between the cached rollout is read at the right time offset (exact for a constant-speed
   ego), or at once when a pedestrian appears that the cached rollout does not hold.
+- **Plan-conditioned paths.** The pedestrians react to the car, so a future is only true for a given plan
+  of the ego. `OracleTrajectory` also adds ``plan_paths`` (P, K, 12, 2): the same paths for each of the
+  plans in ``plan_accelerations`` (P,) (m/s², each held over the 4.8 s horizon, the ego's speed kept
+  within [0, speed limit]; default: go +1.5, keep 0, slow −2.5). The keep plan (0) reuses the
+  ``predicted_paths`` rollout; each other plan costs one more rollout every `plan_refresh_steps` (default
+  4, as the keep plan: the rollouts dominate an oracle episode's cost, but refreshing the plans every 8
+  steps brought the chatter back on a signalised_red_light dev episode, 8 sign changes against 4). Between
+  refreshes the cached plan rollouts are read at the time offset, exact only for an ego that followed
+  that plan.
+  `agents.predictive` scores the plans with them (`agents.plans`).
 """
 
 from __future__ import annotations
@@ -44,7 +54,21 @@ from crossing_env.observation import (
 )
 from crossing_env.pedestrians.transitions import APPROACHING, CROSSING, WAITING
 
-__all__ = ["OracleIntention", "OracleTrajectory", "rollout_pedestrians"]
+__all__ = [
+    "PLAN_ACCELERATIONS_KEY",
+    "PLAN_PATHS_KEY",
+    "OracleIntention",
+    "OracleTrajectory",
+    "rollout_pedestrians",
+]
+
+PLAN_PATHS_KEY = "plan_paths"
+"""Observation key of the plan-conditioned paths (P, K, 12, 2), one `predicted_paths` per plan."""
+PLAN_ACCELERATIONS_KEY = "plan_accelerations"
+"""Observation key of the plans' ego accelerations (P,), m/s², in the order of ``plan_paths``."""
+DEFAULT_PLANS: tuple[float, ...] = (1.5, 0.0, -2.5)
+"""Default plans (m/s²): go (the yielding policy's `go_acceleration`), keep the speed, slow down
+(its `comfortable_deceleration`, below the 3 m/s² hard-braking threshold)."""
 
 PRED_LEN = 12
 """Predicted positions per pedestrian (the ETH/UCY protocol: 12, `HISTORY_INTERVAL` apart)."""
@@ -65,11 +89,13 @@ def _slots(env: gym.Env) -> np.ndarray:
     return env.unwrapped._observer.last_slots
 
 
-def rollout_pedestrians(world: Any, steps: int) -> tuple[np.ndarray, np.ndarray]:
-    """Roll a copy of `world` forward `steps` steps with the ego holding its speed.
+def rollout_pedestrians(world: Any, steps: int, acceleration: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Roll a copy of `world` forward `steps` steps with the ego holding `acceleration` (m/s², default 0).
 
-    Returns (ids, positions): (steps + 1, P) pedestrian ids per pool slot (−1 where inactive) and
-    (steps + 1, P, 2) positions, index 0 being the current state. `world` itself is not touched.
+    The ego's speed is kept within [0, the road's speed limit] (the commanded acceleration is cut where
+    the plan would leave it), so a plan is "accelerate to the limit" or "brake to a stop". Returns
+    (ids, positions): (steps + 1, P) pedestrian ids per pool slot (−1 where inactive) and (steps + 1, P, 2)
+    positions, index 0 being the current state. `world` itself is not touched.
     """
     # Share what never changes within an episode and the process-wide pymunk batch buffers (not copyable).
     memo = {id(x): x for x in (physics._SET_BUFFER, physics._GET_BUFFER, world.scenario, world.config)}
@@ -79,9 +105,14 @@ def rollout_pedestrians(world: Any, steps: int) -> tuple[np.ndarray, np.ndarray]
     cap = peds.capacity
     ids = np.full((steps + 1, cap), -1, dtype=np.int64)
     pos = np.zeros((steps + 1, cap, 2))
+    limit = max(float(world.scenario.road.speed_limit), float(sim.traffic.speed[0]))
+    dt = float(sim.dt)
     for s in range(steps + 1):
-        if s:
+        if s and acceleration == 0.0:
             sim.step(0.0)
+        elif s:
+            v = float(sim.traffic.speed[0])
+            sim.step(float(np.clip(acceleration, -v / dt, (limit - v) / dt)))
         act = peds.state != 0
         ids[s] = np.where(act, peds.ids, -1)
         pos[s] = peds.position
@@ -134,8 +165,17 @@ class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
     privileged: ClassVar[bool] = True
     """Reads the ground truth: an upper bound for evaluation, never a sensor model."""
 
-    def __init__(self, env: gym.Env, refresh_steps: int = 4) -> None:
-        gym.utils.RecordConstructorArgs.__init__(self, refresh_steps=refresh_steps)
+    def __init__(
+        self,
+        env: gym.Env,
+        refresh_steps: int = 4,
+        plan_refresh_steps: int = 4,
+        plan_accelerations: tuple[float, ...] = DEFAULT_PLANS,
+    ) -> None:
+        plans = tuple(float(a) for a in plan_accelerations)
+        gym.utils.RecordConstructorArgs.__init__(
+            self, refresh_steps=refresh_steps, plan_refresh_steps=plan_refresh_steps, plan_accelerations=plans
+        )
         gym.ObservationWrapper.__init__(self, env)
         space = env.observation_space
         hist = space.spaces.get(PEDESTRIAN_HISTORY_KEY) if isinstance(space, spaces.Dict) else None
@@ -147,7 +187,17 @@ class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
             raise ValueError(
                 f"OracleTrajectory: refresh_steps must be an integer >= 1, got {refresh_steps!r}"
             )
+        if not all(np.isfinite(plans)):
+            raise ValueError(f"OracleTrajectory: plan accelerations must be finite, got {plans}")
+        if not (isinstance(plan_refresh_steps, int) and plan_refresh_steps >= 1):
+            raise ValueError(
+                f"OracleTrajectory: plan_refresh_steps must be an integer >= 1, got {plan_refresh_steps!r}"
+            )
         self.refresh_steps = refresh_steps
+        self.plan_refresh_steps = plan_refresh_steps
+        """Env steps between rollouts of the moving plans (each costs one rollout per refresh)."""
+        self.plans = plans
+        """Ego accelerations (m/s²) of the plans whose futures go into ``plan_paths`` (empty: no key)."""
         self.num_slots = hist.shape[0]
         bound = float(max(np.abs(hist.low).max(), np.abs(hist.high).max())) + PRED_LEN * MAX_STEP
         self.bound = np.float32(bound) if np.isfinite(bound) else np.float32(np.finfo(np.float32).max)
@@ -155,8 +205,15 @@ class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         new[PREDICTED_PATHS_KEY] = spaces.Box(
             -self.bound, self.bound, (self.num_slots, PRED_LEN, len(PointColumn)), np.float32
         )
+        if plans:
+            new[PLAN_PATHS_KEY] = spaces.Box(
+                -self.bound, self.bound, (len(plans), self.num_slots, PRED_LEN, len(PointColumn)), np.float32
+            )
+            new[PLAN_ACCELERATIONS_KEY] = spaces.Box(-np.inf, np.inf, (len(plans),), np.float32)
         self.observation_space = spaces.Dict(new)
         self._cache: tuple[int, np.ndarray, np.ndarray] | None = None  # (start step, ids, positions)
+        self._plan_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}  # plan → (ids, positions)
+        self._plan_start = 0
         self.rollouts = 0
         """Rollouts run so far (each copies the world and steps it 4.8 s + refresh ahead)."""
 
@@ -165,16 +222,19 @@ class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
     ) -> tuple[Any, dict[str, Any]]:
         """Reset the env and forget the cached rollout."""
         self._cache = None
+        self._plan_cache = {}
         return super().reset(seed=seed, options=options)
 
     def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """The observation with the true future paths of the present slots added."""
+        """The observation with the true future paths of the present slots added (and per plan)."""
         world = _world(self.env)
         peds = world.pedestrians
         slots = _slots(self.env)
         step = round(world.time / world.dt)
         every = round(HISTORY_INTERVAL / world.dt)
-        paths = np.zeros((self.num_slots, PRED_LEN, len(PointColumn)), np.float32)
+        shape = (self.num_slots, PRED_LEN, len(PointColumn))
+        paths = np.zeros(shape, np.float32)
+        plan_paths = np.zeros((len(self.plans), *shape), np.float32)
         present = np.flatnonzero(slots >= 0)
         if present.size:
             p = slots[present]
@@ -192,13 +252,37 @@ class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
                 self.rollouts += 1
                 offset = 0
             _, ids, pos = cache
-            rows = offset + every * np.arange(1, PRED_LEN + 1)  # (12,)
-            future = pos[rows][:, p]  # (12, n, 2)
-            alive = ids[rows][:, p] == want[None, :]  # a pedestrian who leaves keeps its last position
-            for j in range(1, PRED_LEN):
-                future[j] = np.where(alive[j][:, None], future[j], future[j - 1])
+            moving = [a for a in self.plans if a != 0.0]
+            start = self._plan_start
+            plan_offset = step - start
+            if moving and (
+                not self._plan_cache
+                or plan_offset >= self.plan_refresh_steps
+                or plan_offset < 0
+                or not all(np.all(c[0][plan_offset, p] == want) for c in self._plan_cache.values())
+            ):
+                # Each plan's world starts from the same state (and a copy of the same generator).
+                steps = PRED_LEN * every + self.plan_refresh_steps - 1
+                self._plan_cache = {a: rollout_pedestrians(world, steps, a) for a in moving}
+                self._plan_start = step
+                self.rollouts += len(moving)
+                plan_offset = 0
             ego = world.ego_position
-            paths[present] = np.transpose(future - ego, (1, 0, 2)).astype(np.float32)
+            jobs = [(paths, ids, pos, offset)]
+            for target, a in zip(plan_paths, self.plans, strict=True):
+                jobs.append(
+                    (target, ids, pos, offset) if a == 0.0 else (target, *self._plan_cache[a], plan_offset)
+                )
+            for target, plan_ids, positions, at in jobs:
+                rows = at + every * np.arange(1, PRED_LEN + 1)  # (12,)
+                future = positions[rows][:, p]  # (12, n, 2)
+                alive = plan_ids[rows][:, p] == want[None, :]  # one who leaves keeps its last position
+                for j in range(1, PRED_LEN):
+                    future[j] = np.where(alive[j][:, None], future[j], future[j - 1])
+                target[present] = np.transpose(future - ego, (1, 0, 2)).astype(np.float32)
         out = dict(observation)
         out[PREDICTED_PATHS_KEY] = np.clip(paths, -self.bound, self.bound)
+        if self.plans:
+            out[PLAN_PATHS_KEY] = np.clip(plan_paths, -self.bound, self.bound)
+            out[PLAN_ACCELERATIONS_KEY] = np.asarray(self.plans, np.float32)
         return out

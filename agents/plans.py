@@ -1,0 +1,129 @@
+"""Scoring candidate plans against plan-conditioned forecasts (the PDM-Closed pattern, simplified).
+
+A plan is a constant ego acceleration (m/s²) held over the forecast horizon, the speed kept within
+[0, speed limit]. Each plan comes with its own pedestrian forecast (``plan_paths``: the path oracle rolls
+the world forward under that plan, so pedestrians react to it). A plan is scored by driving the ego along
+its profile against its forecast (closed loop, as PDM-Closed's IDM proposals: the ego brakes for a
+pedestrian in its corridor ahead once a stop needs the comfortable deceleration) with the reward's own
+terms (`scenarios.config.RewardConfig` weights):
+
+- **progress**: metres covered over the horizon (the time term is the same for every plan: omitted);
+- **collision**: the ego's box and a pedestrian's disc overlap (forecast points interpolated);
+- **near_miss**: seconds in which a pedestrian in the ego's lane corridor ahead is closer than
+  `serious_ttc` in time (gap / ego speed);
+- **hard_braking**: a stop (for a pedestrian in the corridor ahead, or at the legal stop) that needs more
+  than `hard_braking_threshold` costs the steps of a full stop at the ego's `max_deceleration`.
+
+The legal-yield rules stay in force whatever the plan, so a plan's ego stops at the rules' legal stop
+target (the stop line for a red light or a zebra duty) and cannot run into anyone beyond it.
+
+Left out, and why: failing_to_yield (the legal-yield rules of `YieldingPolicy` stay in force and
+override any plan) and speeding (no plan exceeds the limit).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from agents.config import PredictiveYieldingConfig
+from crossing_env.observation import HISTORY_INTERVAL
+
+SUBSTEPS = 4
+"""Ego integration steps per 0.4 s forecast interval."""
+
+
+def score_plans(
+    speed: np.ndarray,
+    accelerations: np.ndarray,
+    plan_paths: np.ndarray,
+    present: np.ndarray,
+    cfg: PredictiveYieldingConfig,
+    stop: np.ndarray | None = None,
+    start: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Score (B, P) of each plan (higher is better) and whether it forecasts a hazard (B, P).
+
+    `plan_paths` (B, P, K, T, 2) are positions relative to the ego's current centre (x along the road),
+    `start` (B, K, 2) the current ones (default: the first forecast point); `present` (B, K); `stop`
+    (B,): the legal stop's distance ahead of the ego's front (inf: none). The ego follows the plan's
+    acceleration but, like the rules, brakes for a pedestrian in its lane corridor ahead once a stop needs
+    `comfortable_deceleration` (up to its `max_deceleration`), and halts at `stop`. A hazard is a forecast
+    collision (near misses are scored but are too common, in every stop for a pedestrian, to lift it).
+    """
+    w, m = cfg.plan_weights, cfg.plan_metrics
+    b, p, _k, steps, _ = plan_paths.shape
+    first = (
+        plan_paths[:, :, :, 0]
+        if start is None
+        else np.broadcast_to(start[:, None], plan_paths[..., 0, :].shape)
+    )
+    pts = np.concatenate([first[:, :, :, None], plan_paths], axis=3)  # (B, P, K, T + 1, 2)
+    dt = HISTORY_INTERVAL / SUBSTEPS
+    r = cfg.pedestrian_radius
+    half_len = cfg.ego_length / 2 + r
+    ok = present[:, None, :]
+    cap = np.maximum(cfg.speed_limit, speed)[:, None]
+    halt = np.full((b, 1), np.inf) if stop is None else np.asarray(stop, np.float64)[:, None]
+    v = np.broadcast_to(speed[:, None], (b, p)).astype(np.float64)
+    s = np.zeros_like(v)
+    collision = np.zeros((b, p), dtype=bool)
+    hard = np.zeros((b, p), dtype=bool)
+    near_time = np.zeros((b, p))
+    for n in range(1, steps * SUBSTEPS + 1):
+        j, f = divmod(n, SUBSTEPS)
+        at = (
+            pts[:, :, :, j]
+            if f == 0
+            else pts[:, :, :, j] + (f / SUBSTEPS) * (pts[:, :, :, j + 1] - pts[:, :, :, j])
+        )
+        rel_x = at[..., 0] - s[..., None]  # (B, P, K)
+        y = np.abs(at[..., 1])
+        collision |= (ok & (y <= cfg.ego_width / 2 + r) & (np.abs(rel_x) <= half_len)).any(-1)
+        gap = np.where(
+            ok & (y <= cfg.ego_width / 2 + r + cfg.lateral_margin) & (rel_x > half_len),
+            rel_x - half_len,
+            np.inf,
+        )
+        gap = np.minimum(gap.min(axis=-1), halt - s)  # nearest obstacle ahead, the legal stop included
+        with np.errstate(divide="ignore", invalid="ignore"):
+            need = np.where(gap > 0.05, v * v / (2.0 * np.maximum(gap, 0.05)), np.where(v > 0.0, np.inf, 0.0))
+            near_time += np.where((v > 0.1) & (gap - (halt - s) < 0.0) & (gap < v * m.serious_ttc), dt, 0.0)
+        brake = need >= cfg.comfortable_deceleration
+        hard |= brake & (need > m.hard_braking_threshold)
+        acc = np.where(brake, -np.minimum(need, cfg.ego.max_deceleration), accelerations[None, :])
+        nxt = np.clip(v + acc * dt, 0.0, cap)
+        s = np.minimum(s + 0.5 * (v + nxt) * dt, np.maximum(halt, s))
+        v = np.where(s >= halt, 0.0, nxt)
+    hard_steps = np.ceil(np.maximum(speed, 0.0) / cfg.ego.max_deceleration / cfg.dt)[:, None]
+    score = (
+        w.progress * s
+        + w.collision * collision
+        + w.near_miss * near_time
+        + w.hard_braking * hard_steps * hard
+    )
+    return score, collision
+
+
+def choose_plans(
+    score: np.ndarray,
+    hazard: np.ndarray,
+    current: np.ndarray,
+    held: np.ndarray,
+    cfg: PredictiveYieldingConfig,
+) -> np.ndarray:
+    """Plan index (B,) to follow, with hysteresis.
+
+    The current plan (`current`, −1 for none yet) is kept unless another scores at least
+    `plan_switch_margin` higher and it has been held (`held`, seconds) for `plan_min_hold`; a current
+    plan that forecasts a collision gives way at once to any better-scoring plan (safety is not held back).
+    """
+    best = np.argmax(score, axis=1)
+    rows = np.arange(score.shape[0])
+    cur = np.maximum(current, 0)
+    gain = score[rows, best] - score[rows, cur]
+    switch = (
+        (current < 0)
+        | ((gain >= cfg.plan_switch_margin) & (held >= cfg.plan_min_hold - 1e-9))
+        | (hazard[rows, cur] & (gain > 0.0))
+    )
+    return np.where(switch, best, cur)
