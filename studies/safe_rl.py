@@ -360,10 +360,10 @@ def render_body(data: dict[str, Any]) -> str:
     lines += [
         "",
         f"Selection (seed {SELECTION_SEED}, {data['check_episodes']} episodes per scenario, seeds"
-        " `crossing-eval` does not use) of each seed's final policy, and its training wall-clock (BC warm"
-        " start + PPO):",
+        " `crossing-eval` does not use) of each seed's final policy, and the wall-clock of its PPO phase (the"
+        " warm start not included; shared 2-core machine):",
         "",
-        "| learner | seed | collisions | yield compliance | censored delay s | training wall-clock s |"
+        "| learner | seed | collisions | yield compliance | censored delay s | PPO wall-clock s |"
         " chosen |",
         "|---|---|---|---|---|---|---|",
     ]
