@@ -316,6 +316,7 @@ def _evaluation_rows(data: dict[str, Any]) -> list[str]:
         " delay vs yielding [95 % CI] |",
         "|---|---|---|---|---|---|",
     ]
+    shipped = {"ppo_lagrangian": "ppo_lagrangian", "shielded": "ppo_shielded"}  # `agents.SHIPPED_POLICIES`
     for name in ("yielding", *ALGOS):
         e = ev[name]
         change = e.get("delay_vs_yielding")
@@ -326,7 +327,8 @@ def _evaluation_rows(data: dict[str, Any]) -> list[str]:
             else "-"
         )
         rows.append(
-            f"| {name} | {e['episodes']} | {e['collisions']} | {_fmt(e['compliance'])} ({e['obligations']}) |"
+            f"| {shipped.get(name, name)} | {e['episodes']} | {e['collisions']} |"
+            f" {_fmt(e['compliance'])} ({e['obligations']}) |"
             f" {_fmt(e['censored_delay'], 2)} | {cell} |"
         )
     return rows
@@ -363,8 +365,7 @@ def render_body(data: dict[str, Any]) -> str:
         " `crossing-eval` does not use) of each seed's final policy, and the wall-clock of its PPO phase (the"
         " warm start not included; shared 2-core machine):",
         "",
-        "| learner | seed | collisions | yield compliance | censored delay s | PPO wall-clock s |"
-        " chosen |",
+        "| learner | seed | collisions | yield compliance | censored delay s | PPO wall-clock s | chosen |",
         "|---|---|---|---|---|---|---|",
     ]
     for algo in ALGOS:
