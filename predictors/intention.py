@@ -69,6 +69,7 @@ from predictors.learned_intent_weights import (
     platt,
     release_threshold,
     shipped_weights,
+    with_intent_keys,
 )
 
 __all__ = [
@@ -349,12 +350,7 @@ class CrossingIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs)
         self._calibration = tuple(shipped_weights()["calibration"][variant])
         bound = release_threshold("qlb" if variant == "qlb" else "classical")
         self._bound = np.array([bound], dtype=np.float32)
-        k = space.spaces[PEDESTRIANS_KEY].shape[0]
-        new = dict(space.spaces)
-        new[CROSSING_INTENTION_KEY] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
-        new[CROSSING_INTENT_KEY] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
-        new[CROSSING_INTENT_BOUND_KEY] = spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float32)
-        self.observation_space = spaces.Dict(new)
+        self.observation_space = with_intent_keys(space)
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None

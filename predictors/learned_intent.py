@@ -37,7 +37,12 @@ from crossing_env.observation import (
     VehicleColumn,
 )
 from predictors.intention import INTENT_HORIZON, RoadMap, map_from_env
-from predictors.learned_intent_weights import CROSSING_INTENT_BOUND_KEY, release_threshold, shipped_weights
+from predictors.learned_intent_weights import (
+    CROSSING_INTENT_BOUND_KEY,
+    release_threshold,
+    shipped_weights,
+    with_intent_keys,
+)
 
 __all__ = ["FEATURES", "HEADS", "LearnedIntention", "intent_features", "predict"]
 
@@ -193,12 +198,7 @@ class LearnedIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         self._intent = weights["heads"]["intent"]
         self._map = map_from_env(env)
         self._bound = np.array([release_threshold("learned")], dtype=np.float32)
-        k = space.spaces[PEDESTRIANS_KEY].shape[0]
-        new = dict(space.spaces)
-        new[CROSSING_INTENTION_KEY] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
-        new[CROSSING_INTENT_KEY] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
-        new[CROSSING_INTENT_BOUND_KEY] = spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float32)
-        self.observation_space = spaces.Dict(new)
+        self.observation_space = with_intent_keys(space)
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None
