@@ -191,19 +191,26 @@ def _plugin_entry(obj: Any) -> PolicyEntry:
     return PolicyEntry(obj, None)
 
 
-def _sb3_entry(spec: str) -> PolicyEntry:
-    path = spec[len("sb3:") :]
+def _file_entry(
+    spec: str, example: str, build: Callable[..., Policy], uses_predictors: bool | None
+) -> PolicyEntry:
+    """The entry of a ``prefix:path`` spec (the file must exist); ``build(path, scenario, dt)`` makes it."""
+    path = spec.partition(":")[2]
     if not path:
-        raise ValueError(f"policy {spec!r}: expected 'sb3:path/to/model.zip'")
+        raise ValueError(f"policy {spec!r}: expected {example!r}")
     if not Path(path).is_file():
         raise ValueError(f"policy {spec!r}: no such file {path!r}")
 
     def factory(scenario: ScenarioConfig | None = None, dt: float | None = None) -> Policy:
-        from agents.sb3 import SB3Policy
+        return build(path, scenario, dt)
 
-        return SB3Policy(path)
+    return PolicyEntry(factory, None, uses_predictors)
 
-    return PolicyEntry(factory, None, None)
+
+def _sb3_policy(path: str, scenario: ScenarioConfig | None = None, dt: float | None = None) -> Policy:
+    from agents.sb3 import SB3Policy
+
+    return SB3Policy(path)
 
 
 def mlp_policy(path: str | Path, scenario: ScenarioConfig | None = None, dt: float | None = None) -> Policy:
@@ -219,19 +226,6 @@ def mlp_policy(path: str | Path, scenario: ScenarioConfig | None = None, dt: flo
     return ShieldedPolicy(learned, shield, learned.weights.residual_scale)
 
 
-def _mlp_entry(spec: str) -> PolicyEntry:
-    path = spec[len("mlp:") :]
-    if not path:
-        raise ValueError(f"policy {spec!r}: expected 'mlp:path/to/policy.npz'")
-    if not Path(path).is_file():
-        raise ValueError(f"policy {spec!r}: no such file {path!r}")
-
-    def factory(scenario: ScenarioConfig | None = None, dt: float | None = None) -> Policy:
-        return mlp_policy(path, scenario, dt)
-
-    return PolicyEntry(factory, None, uses_predictors=False)
-
-
 def policy_entry(name: str) -> PolicyEntry:
     """The entry for a registered name, an entry point, ``pkg.module:attr`` or ``sb3:path``.
 
@@ -241,9 +235,9 @@ def policy_entry(name: str) -> PolicyEntry:
     if name in _REGISTRY:
         return _REGISTRY[name]
     if name.startswith("sb3:"):
-        return _sb3_entry(name)
+        return _file_entry(name, "sb3:path/to/model.zip", _sb3_policy, None)
     if name.startswith("mlp:"):
-        return _mlp_entry(name)
+        return _file_entry(name, "mlp:path/to/policy.npz", mlp_policy, False)
     eps = _entry_points()
     if name in eps:
         return _plugin_entry(_import_attr(eps[name]))

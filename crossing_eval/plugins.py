@@ -37,23 +37,19 @@ def default_policies() -> tuple[list[str], str | None]:
 
 
 def policy_spec(text: str) -> str:
-    """A checked policy spec (``sb3:`` paths made absolute, so every worker finds the file).
+    """A checked policy spec (``sb3:`` and ``mlp:`` paths made absolute, so every worker finds the file).
 
     Raises:
         ValueError: unknown name, module or attribute, missing file, or SB3 not installed.
     """
-    if text.startswith("sb3:"):
-        path = Path(text[len("sb3:") :]).expanduser()
+    prefix, _, rest = text.partition(":")
+    if prefix in ("sb3", "mlp"):
+        path = Path(rest).expanduser()
         if not path.is_file():
             raise ValueError(f"policy {text!r}: no such file {str(path)!r}")
-        if not sb3_available():
+        if prefix == "sb3" and not sb3_available():
             raise ValueError(f"policy {text!r} needs Stable-Baselines3: pip install -e '.[rl]'")
-        text = f"sb3:{path.resolve()}"
-    elif text.startswith("mlp:"):
-        path = Path(text[len("mlp:") :]).expanduser()
-        if not path.is_file():
-            raise ValueError(f"policy {text!r}: no such file {str(path)!r}")
-        text = f"mlp:{path.resolve()}"
+        text = f"{prefix}:{path.resolve()}"
     policy_entry(text)
     return text
 

@@ -310,7 +310,21 @@ def crossing_intention(
     return (prob * present).astype(np.float32)
 
 
-class CrossingIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
+class RoadMapWrapper(gym.ObservationWrapper):
+    """An observation wrapper that reads the static road map (`map_from_env`), refreshed at every reset."""
+
+    _map: RoadMap
+
+    def reset(
+        self, *, seed: int | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Any, dict[str, Any]]:
+        """Reset the env and refresh the static map (``options={"scenario": ...}`` may change it)."""
+        obs, info = self.env.reset(seed=seed, options=options)
+        self._map = map_from_env(self.env)
+        return self.observation(obs), info
+
+
+class CrossingIntention(RoadMapWrapper, gym.utils.RecordConstructorArgs):
     """Add ``crossing_intention`` and ``crossing_intent`` (K,) to a crossing_env Dict observation.
 
     See the module docstring; ``crossing_intent`` is calibrated with the shipped Platt coefficients.
@@ -351,14 +365,6 @@ class CrossingIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs)
         bound = release_threshold("qlb" if variant == "qlb" else "classical")
         self._bound = np.array([bound], dtype=np.float32)
         self.observation_space = with_intent_keys(space)
-
-    def reset(
-        self, *, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[Any, dict[str, Any]]:
-        """Reset the env and refresh the static map (``options={"scenario": ...}`` may change it)."""
-        obs, info = self.env.reset(seed=seed, options=options)
-        self._map = map_from_env(self.env)
-        return self.observation(obs), info
 
     def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """The observation with ``crossing_intention`` and ``crossing_intent`` added."""

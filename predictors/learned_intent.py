@@ -36,7 +36,7 @@ from crossing_env.observation import (
     PointColumn,
     VehicleColumn,
 )
-from predictors.intention import INTENT_HORIZON, RoadMap, map_from_env
+from predictors.intention import INTENT_HORIZON, RoadMap, RoadMapWrapper, map_from_env
 from predictors.learned_intent_weights import (
     CROSSING_INTENT_BOUND_KEY,
     release_threshold,
@@ -170,7 +170,7 @@ def predict(features: np.ndarray, head: dict[str, Any]) -> np.ndarray:
     return 0.5 * (1.0 + np.tanh(0.5 * logit))
 
 
-class LearnedIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
+class LearnedIntention(RoadMapWrapper, gym.utils.RecordConstructorArgs):
     """Add ``crossing_intention`` and ``crossing_intent`` (K,) from the shipped logistic heads.
 
     Args:
@@ -199,14 +199,6 @@ class LearnedIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         self._map = map_from_env(env)
         self._bound = np.array([release_threshold("learned")], dtype=np.float32)
         self.observation_space = with_intent_keys(space)
-
-    def reset(
-        self, *, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[Any, dict[str, Any]]:
-        """Reset the env and refresh the static map (``options={"scenario": ...}`` may change it)."""
-        obs, info = self.env.reset(seed=seed, options=options)
-        self._map = map_from_env(self.env)
-        return self.observation(obs), info
 
     def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """The observation with both keys added (0 for absent slots)."""

@@ -30,6 +30,7 @@ import json
 import subprocess
 import sys
 import time
+from functools import cache
 from pathlib import Path
 from typing import Any
 
@@ -184,21 +185,39 @@ def _evaluate(
     )
 
 
+@cache
+def _duration(scenario: str) -> float:
+    """A scenario's duration: the censoring horizon of `crossing_eval.statistics.censored_delay`."""
+    from scenarios import load_scenario
+
+    return load_scenario(scenario).duration
+
+
+def _censored(records: list[Any]) -> np.ndarray:
+    """Each record's censored delay: its delay if it passed, else its scenario's duration."""
+    return np.array(
+        [r.result["delay"] if r.result["passed_crossing"] else _duration(r.task.scenario) for r in records]
+    )
+
+
 def _scores(records: list[Any]) -> dict[str, float]:
     """Collisions, compliance and censored delay of a list of records."""
-    from scenarios import load_scenario
+    from crossing_eval.statistics import censored_delay
 
     res = [r.result for r in records]
     obligations = sum(r["yield_obligations"] for r in res)
     violations = sum(r["yield_violations"] for r in res)
-    delays = [r["delay"] if r["passed_crossing"] else load_scenario(rec.task.scenario).duration
-              for r, rec in zip(res, records, strict=True)]  # fmt: skip
+    delay = censored_delay(
+        [r["delay"] for r in res],
+        [r["passed_crossing"] for r in res],
+        [_duration(r.task.scenario) for r in records],
+    )
     return {
         "episodes": len(res),
         "collisions": int(sum(bool(r["collision"]) for r in res)),
         "obligations": int(obligations),
         "compliance": 1.0 - violations / obligations if obligations else float("nan"),
-        "censored_delay": float(np.mean(delays)),
+        "censored_delay": float(delay["censored_mean_delay"]),
     }
 
 
@@ -226,14 +245,10 @@ def paired_delay_difference(a: list[Any], b: list[Any], rng_seed: int = 0) -> di
     """Mean censored delay of `a` minus `b` on paired episodes, relative to `b`, with a 95 % bootstrap CI."""
     from scipy import stats
 
-    from scenarios import load_scenario
-
     def delays(records: list[Any]) -> dict[tuple[str, int], float]:
-        return {
-            (r.task.scenario, r.task.episode): r.result["delay"] if r.result["passed_crossing"]
-            else load_scenario(r.task.scenario).duration
-            for r in records
-        }  # fmt: skip
+        return dict(
+            zip(((r.task.scenario, r.task.episode) for r in records), _censored(records), strict=True)
+        )
 
     da, db = delays(a), delays(b)
     keys = sorted(set(da) & set(db))

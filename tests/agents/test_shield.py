@@ -65,7 +65,7 @@ def test_no_action_above_the_envelope_gets_through(speed, to_stop, zebra, green,
     applied = float(action_to_acceleration(action, CONFIG.ego)[0])
     assert action.shape == (1,) and action.dtype == np.float32
     assert applied <= max(bound, -CONFIG.ego.max_deceleration) + 1e-4
-    wanted = float(action_to_acceleration(requested, CONFIG.ego))
+    wanted = float(action_to_acceleration(float(np.float32(requested)), CONFIG.ego))  # as the float32 action
     assert changed == (wanted > bound)  # an action inside the envelope passes untouched
     if not changed:
         assert action[0] == np.float32(requested)
