@@ -19,6 +19,7 @@ Rendered blocks sit between ``<!-- results:NAME -->`` and ``<!-- /results:NAME -
 from __future__ import annotations
 
 import argparse
+import functools
 import hashlib
 import json
 import re
@@ -40,6 +41,7 @@ FINGERPRINT_STEPS = 300
 crossing in every built-in scenario, so a change to its rules changes the hash."""
 
 
+@functools.cache
 def behaviour_fingerprint() -> str:
     """Hash of the actions and scored results of a short fixed-seed rollout of every built-in scenario.
 
@@ -61,6 +63,35 @@ def behaviour_fingerprint() -> str:
             digest.update(f"{scenario}/{policy}".encode())
             digest.update(json.dumps(episode.actions).encode())
             digest.update(json.dumps(episode.result, sort_keys=True, default=str).encode())
+    return digest.hexdigest()[:16]
+
+
+LEARNED_FINGERPRINT_SCENARIOS = ("busy_zebra", "children_running", "zebra_case1")
+"""Scenarios of the learned policies' fingerprint: zebras where the shield's limits act."""
+
+
+@functools.cache
+def learned_fingerprint() -> str:
+    """The behaviour fingerprint extended by the shipped learned policies (their files and a short rollout).
+
+    The behaviour fingerprint drives only the rule policies; a table with a learned row (the default table,
+    the safe-RL tables) must also go stale when the weights, the shield or the numpy actor change.
+    """
+    from agents.registry import SHIPPED_POLICIES
+    from crossing_eval.tasks import episode_seed
+    from rollout import RolloutSpec, build, run_episode
+
+    digest = hashlib.sha256(behaviour_fingerprint().encode())
+    for name in sorted(SHIPPED_POLICIES):
+        digest.update(SHIPPED_POLICIES[name].read_bytes())
+        for scenario in LEARNED_FINGERPRINT_SCENARIOS:
+            run = build(RolloutSpec(scenario=scenario, policy=name))
+            episode = run_episode(
+                run.env, episode_seed(2024, scenario, 0), policy=run.policy, max_steps=FINGERPRINT_STEPS
+            )
+            run.env.close()
+            digest.update(f"{scenario}/{name}".encode())
+            digest.update(json.dumps(episode.actions).encode())
     return digest.hexdigest()[:16]
 
 
@@ -206,6 +237,32 @@ def _render_sim_transfer(data: dict[str, Any]) -> str:
     )
 
 
+def _measure_value_of_prediction() -> dict[str, Any]:
+    """`python -m studies.value_of_prediction` (defaults): runs the rows missing from ``runs/value_v2``
+    (about 1.5 h on 2 cores from nothing), then the accuracy and the analysis."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "value_of_prediction.json"
+        subprocess.run(
+            [sys.executable, "-m", "studies.value_of_prediction", "--runs", str(REPO / "runs" / "value_v2"),
+             "--out", str(out)],
+            check=True,
+            cwd=REPO,
+        )  # fmt: skip
+        return json.loads(out.read_text(encoding="utf-8"))
+
+
+def _render_value_of_prediction(data: dict[str, Any]) -> str:
+    from crossing_eval.value_v2 import render_body
+
+    return render_body(data)
+
+
+def _render_value_of_prediction_summary(data: dict[str, Any]) -> str:
+    from crossing_eval.value_v2 import render_summary
+
+    return render_summary(data)
+
+
 def _measure_predictor_checkpoints() -> dict[str, Any]:
     from studies.predictor_tables import measure_checkpoints
 
@@ -295,6 +352,7 @@ ENTRIES: dict[str, Entry] = {
             _measure_default_table,
             _render_default_table,
             REPO / "docs" / "evaluation.md",
+            fingerprint=learned_fingerprint,
         ),
         Entry(
             "discrimination",
@@ -303,13 +361,21 @@ ENTRIES: dict[str, Entry] = {
             _render_discrimination,
             REPO / "docs" / "scenario_discrimination.md",
         ),
-        Entry("safe_rl", "slow", _measure_safe_rl, _render_safe_rl, REPO / "docs" / "rl.md"),
+        Entry(
+            "safe_rl",
+            "slow",
+            _measure_safe_rl,
+            _render_safe_rl,
+            REPO / "docs" / "rl.md",
+            fingerprint=learned_fingerprint,
+        ),
         Entry(
             "safe_rl_summary",
             "slow",
             _measure_safe_rl,
             _render_safe_rl_summary,
             REPO / "README.md",
+            fingerprint=learned_fingerprint,
             data="safe_rl",
         ),
         Entry(
@@ -350,6 +416,21 @@ ENTRIES: dict[str, Entry] = {
             _measure_predictor_speed,
             _render_predictor_speed,
             REPO / "predictors" / "RESULTS.md",
+        ),
+        Entry(
+            "value_of_prediction",
+            "slow",
+            _measure_value_of_prediction,
+            _render_value_of_prediction,
+            REPO / "docs" / "value_of_prediction.md",
+        ),
+        Entry(
+            "value_of_prediction_summary",
+            "slow",
+            _measure_value_of_prediction,
+            _render_value_of_prediction_summary,
+            REPO / "README.md",
+            data="value_of_prediction",
         ),
         Entry(
             "sim_transfer",

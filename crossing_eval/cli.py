@@ -24,6 +24,7 @@ from crossing_eval.outputs import write_outputs
 from crossing_eval.plugins import (
     PREDICTOR_NAMES,
     default_policies,
+    intention_spec,
     policies_help,
     policy_spec,
     predictor_spec,
@@ -147,13 +148,15 @@ def build_parser() -> argparse.ArgumentParser:
         type=_predictor,
         default=DEFAULT_PREDICTOR,
         help="trajectory predictor wrapper for policies that use predictions: "
-        f"{', '.join(PREDICTOR_CHOICES)} or a checkpoint file",
+        f"{', '.join(PREDICTOR_CHOICES)}, oracle-noise=sigma (the oracle with an error of sigma m at 4.8 s)"
+        " or a checkpoint file",
     )
     parser.add_argument(
         "--intention",
-        choices=INTENTION_CHOICES,
+        type=_intention,
         default=DEFAULT_INTENTION,
-        help="crossing-intention wrapper for policies that use predictions",
+        help="crossing-intention wrapper for policies that use predictions: "
+        f"{', '.join(INTENTION_CHOICES)}, or oracle-flip=q (the oracle wrong for a share q of pedestrians)",
     )
     parser.add_argument(
         "--grid",
@@ -182,6 +185,13 @@ def _resolve_scenarios(parser: argparse.ArgumentParser, names: list[str] | None)
                 f" .toml file); built-in: {', '.join(sorted(builtin))}"
             )
     return sorted(dict.fromkeys(out))
+
+
+def _intention(text: str) -> str:
+    try:
+        return intention_spec(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _predictor(text: str) -> str:

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from agents import policy_uses_predictors
+from crossing_eval.plugins import degraded_spec
 from crossing_eval.tasks import EpisodeRecord, EpisodeTask, make_tasks
 
 GRID_KEYS = ("intention", "predictor")
@@ -56,7 +57,7 @@ def parse_grid(
         if not names:
             raise ValueError(f"grid item {item!r}: no values after '='")
         for name in names:
-            if name not in allowed[key]:
+            if name not in allowed[key] and not degraded_spec(name, key):
                 raise ValueError(
                     f"grid item {item!r}: unknown {key} {name!r}; allowed: {', '.join(allowed[key])}"
                 )

@@ -18,6 +18,13 @@ from agents.registry import (
     policy_entry,
     policy_names,
 )
+from rollout.wrappers import (
+    DEGRADED_INTENTION,
+    DEGRADED_PREDICTOR,
+    WrapperError,
+    degraded_level,
+    intention_names,
+)
 
 PREDICTOR_NAMES = ("s-cgru", "cvm", "none", "oracle")
 """Built-in `--predictor` names ("oracle" is privileged); it also takes a checkpoint path."""
@@ -54,13 +61,49 @@ def policy_spec(text: str) -> str:
     return text
 
 
+def degraded_spec(text: str, kind: str) -> str | None:
+    """A degraded oracle's name as given, or None for any other name.
+
+    ``oracle-flip=q`` (kind 'intention', q in [0, 1]) or ``oracle-noise=sigma`` (kind 'predictor',
+    sigma >= 0 m): the privileged oracles spoilt by a known amount (`predictors.degraded`).
+
+    Raises:
+        ValueError: the degraded name with a level that is not a number or out of range.
+    """
+    prefix = DEGRADED_INTENTION if kind == "intention" else DEGRADED_PREDICTOR
+    try:
+        level = degraded_level(text, prefix)
+    except WrapperError as exc:
+        raise ValueError(str(exc)) from None
+    if level is None:
+        return None
+    ok = 0.0 <= level <= 1.0 if kind == "intention" else 0.0 <= level < float("inf")
+    if not ok:
+        want = "a probability in [0, 1]" if kind == "intention" else "a finite distance >= 0 (m)"
+        raise ValueError(f"{text!r}: the level must be {want}, got {level}")
+    return text
+
+
+def intention_spec(text: str) -> str:
+    """A built-in intention name, or ``oracle-flip=q``.
+
+    Raises:
+        ValueError: anything else.
+    """
+    if text in intention_names() or degraded_spec(text, "intention"):
+        return text
+    raise ValueError(
+        f"unknown intention {text!r}: not one of {', '.join(intention_names())} nor {DEGRADED_INTENTION}=q"
+    )
+
+
 def predictor_spec(text: str) -> str:
-    """A built-in predictor name, or an existing checkpoint file as an absolute path.
+    """A built-in predictor name, ``oracle-noise=sigma``, or an existing checkpoint file as an absolute path.
 
     Raises:
         ValueError: neither a name nor an existing file.
     """
-    if text in PREDICTOR_NAMES:
+    if text in PREDICTOR_NAMES or degraded_spec(text, "predictor"):
         return text
     path = Path(text).expanduser()
     if not path.is_file():

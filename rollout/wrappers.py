@@ -81,6 +81,28 @@ CHECKPOINT_WRAPPER = "predictors.trajectory_wrapper:TrajectoryPrediction"
 """The wrapper a ``--predictor`` checkpoint path is loaded into (``model=path``)."""
 
 
+DEGRADED_INTENTION = "oracle-flip"
+"""``oracle-flip=q``: the intention oracle wrong for each track with probability q (`predictors.degraded`)."""
+DEGRADED_PREDICTOR = "oracle-noise"
+"""``oracle-noise=sigma``: the path oracle with a horizon-growing error, sigma (m) at 4.8 s
+(`predictors.degraded`)."""
+
+
+def degraded_level(name: str, prefix: str) -> float | None:
+    """The level of a degraded-oracle name (``oracle-flip=0.2`` → 0.2), None for any other name.
+
+    Raises:
+        WrapperError: the prefix with a value that is not a number.
+    """
+    head, sep, value = name.partition("=")
+    if not sep or head != prefix:
+        return None
+    try:
+        return float(value)
+    except ValueError:
+        raise WrapperError(f"{name!r}: {prefix}= needs a number, got {value!r}") from None
+
+
 def intention_names() -> tuple[str, ...]:
     """Every ``--intention`` value: the table's names and ``none``."""
     return (*INTENTION_WRAPPERS, NONE)
@@ -118,6 +140,11 @@ def wrap_intention(env: Any, name: str) -> tuple[Any, str | None]:
     """
     if name == NONE:
         return env, None
+    flip = degraded_level(name, DEGRADED_INTENTION)
+    if flip is not None:
+        oracle = _build(env, INTENTION_WRAPPERS["oracle"], f"intention {name!r}")
+        entry = WrapperEntry("predictors.degraded:FlippedIntention", {"flip": flip}, privileged=True)
+        return _build(oracle, entry, f"intention {name!r}"), f"intention:{name}"
     if name not in INTENTION_WRAPPERS:
         raise WrapperError(f"intention {name!r}: unknown; choose from {', '.join(intention_names())}")
     return _build(env, INTENTION_WRAPPERS[name], f"intention {name!r}"), f"intention:{name}"
@@ -132,6 +159,11 @@ def wrap_predictor(env: Any, name: str) -> tuple[Any, str | None]:
     if name == NONE:
         return env, None
     what = f"predictor {name!r}"
+    sigma = degraded_level(name, DEGRADED_PREDICTOR)
+    if sigma is not None:
+        oracle = _build(env, TRAJECTORY_WRAPPERS["oracle"], what)
+        entry = WrapperEntry("predictors.degraded:NoisyPaths", {"sigma": sigma}, privileged=True)
+        return _build(oracle, entry, what), f"trajectory:{name}"
     if name in TRAJECTORY_WRAPPERS:
         return _build(env, TRAJECTORY_WRAPPERS[name], what), f"trajectory:{name}"
     if not Path(name).expanduser().is_file():
