@@ -37,6 +37,7 @@ from crossing_eval.runners import (
     RunInterrupted,
     default_workers,
     pool_pays_off,
+    pool_start_method,
     run_tasks,
 )
 from crossing_eval.summary import format_table, summarise
@@ -329,8 +330,12 @@ def _run(
         prefix = "crossing-eval: "
     workers = args.workers
     where = f"{workers} worker(s)"
-    if args.backend == "local" and workers > 1 and not pool_pays_off(len(tasks), workers):
-        workers, where = 1, "in this process (fewer episodes than a worker pool's start-up is worth)"
+    if args.backend == "local" and workers > 1:
+        method = pool_start_method()
+        if pool_pays_off(len(tasks), workers, method):
+            where = f"{workers} worker(s) ({method})"
+        else:
+            workers, where = 1, "in this process (fewer episodes than a worker pool's start-up is worth)"
     print(
         f"{prefix}{len(args.scenarios)} scenario(s) x"
         f" {len(args.policies)} policies x {args.episodes} episode(s) = {len(tasks)} episodes,"

@@ -79,19 +79,34 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-WORKER_START_SECONDS = 4.0
-"""Rough CPU cost of starting one worker process (torch, the env, the predictor models and PPO imported
-and loaded again) on a warm install; measured 3-5 s, far more when the CPUs are shared."""
+WORKER_START_SECONDS = {"forkserver": 4.0, "fork": 0.3}
+"""Rough CPU cost of starting one worker process. A forkserver worker imports the packages and loads the
+env, the predictor models and the policies again: 3-5 s on a warm install, far more when the CPUs are
+shared. A forked one starts with the parent's (the preflight's envs and models included); it only loads
+the compiled kernels, which this process would otherwise load itself."""
 EPISODE_SECONDS = 0.5
 """Rough mean CPU cost of one episode of the default table (0.07 s for constant speed, ~1 s for a yielding
 policy under the prediction wrappers)."""
 
 
-def pool_pays_off(total: int | None, workers: int) -> bool:
+def pool_start_method() -> str:
+    """How worker processes start: ``fork`` while this process has not imported torch, else ``forkserver``.
+
+    A forked child of a process that has run torch ops can hang in torch's thread pool; the default run
+    does not import torch (the shipped predictor and learned policy run without it), so its workers are
+    forked from the preflight's process, with its imports, envs and models, in milliseconds.
+    """
+    if "torch" in sys.modules or "fork" not in multiprocessing.get_all_start_methods():
+        return "forkserver"
+    return "fork"
+
+
+def pool_pays_off(total: int | None, workers: int, method: str = "forkserver") -> bool:
     """Whether a pool of `workers` processes finishes `total` episodes sooner than this process alone.
 
     The pool saves about ``total * EPISODE_SECONDS * (1 - 1/workers)`` and costs the start-up of its
-    workers; a small run (`crossing-eval --scenarios zebra_case1 --episodes 1`) therefore runs in this
+    workers (`WORKER_START_SECONDS` by start `method`); a small run
+    (`crossing-eval --scenarios zebra_case1 --episodes 1`) with forkserver workers therefore runs in this
     process, with the envs and models the preflight already built. An unknown `total` uses the pool.
     The records are the same either way.
     """
@@ -99,7 +114,7 @@ def pool_pays_off(total: int | None, workers: int) -> bool:
         return False
     if total is None:
         return True
-    return total * EPISODE_SECONDS * (workers - 1) > WORKER_START_SECONDS * workers
+    return total * EPISODE_SECONDS * (workers - 1) > WORKER_START_SECONDS[method] * workers
 
 
 class RunInterrupted(Exception):
@@ -116,8 +131,12 @@ class RunInterrupted(Exception):
 
 
 def _ignore_sigint() -> None:
-    """Worker initializer: Ctrl-C goes to the whole process group; only the parent handles it."""
+    """Worker initializer: Ctrl-C goes to the whole process group; only the parent handles it.
+
+    SIGTERM gets its default action back: a forked worker inherits the parent's `stop_signals` handler.
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 @contextmanager
@@ -162,11 +181,17 @@ def _run_local(
     records: list[EpisodeRecord] = []
     todo = iter(tasks)
     limit = IN_FLIGHT_PER_WORKER * workers
-    # forkserver, not fork: a forked child of a process that has run torch ops can hang in torch's
-    # thread pool, and the predictor wrappers run torch.
+    # fork only while torch is not imported here (`pool_start_method`); the records are the same either way.
+    method = pool_start_method()
+    if method == "fork":
+        # The first episode runs here: it loads the compiled kernels once, and every forked worker starts
+        # with them loaded (instead of each loading them again, about 1 s of CPU apiece).
+        for t in itertools.islice(todo, 1):
+            records.append(run_episode(t))
+            progress()
     pool = ProcessPoolExecutor(
         max_workers=workers,
-        mp_context=multiprocessing.get_context("forkserver"),
+        mp_context=multiprocessing.get_context(method),
         initializer=_ignore_sigint,
     )
     try:
