@@ -20,7 +20,7 @@ from agents.sb3 import ModelFileError
 from crossing_common.cli import DefaultsHelpFormatter, int_at_least, positive_float
 from crossing_common.folders import OutputFolderError, StagedFolder
 from crossing_eval.grid import GRID_MARKER, make_grid_tasks, parse_grid, write_grid_outputs
-from crossing_eval.outputs import write_outputs
+from crossing_eval.outputs import import_plotting, write_outputs
 from crossing_eval.plugins import (
     PREDICTOR_NAMES,
     default_policies,
@@ -351,6 +351,7 @@ def _run(
             args.address,
             show_progress=not args.no_progress,
             ray_timeout=args.ray_timeout,
+            while_waiting=import_plotting,
         )
     except RayConnectionError as exc:
         args.exit_now = exc.abandoned

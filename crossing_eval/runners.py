@@ -27,6 +27,8 @@ from crossing_eval.tasks import EpisodeRecord, EpisodeTask, run_episode
 
 IN_FLIGHT_PER_WORKER = 2
 """Tasks submitted at a time per worker (lazy submission keeps memory flat whatever ``--episodes`` is)."""
+FIRST_EPISODE_LOOKAHEAD = 64
+"""Tasks searched for one with the prediction wrappers, to run first in this process before forking."""
 DEFAULT_RAY_TIMEOUT = 30.0
 """Seconds to wait for a Ray cluster at ``--address`` before giving up with a message."""
 
@@ -170,7 +172,10 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
 
 
 def _run_local(
-    tasks: Iterable[EpisodeTask], workers: int, progress: Callable[[], None]
+    tasks: Iterable[EpisodeTask],
+    workers: int,
+    progress: Callable[[], None],
+    while_waiting: Callable[[], None] | None = None,
 ) -> list[EpisodeRecord]:
     if workers <= 1:
         out = []
@@ -184,11 +189,15 @@ def _run_local(
     # fork only while torch is not imported here (`pool_start_method`); the records are the same either way.
     method = pool_start_method()
     if method == "fork":
-        # The first episode runs here: it loads the compiled kernels once, and every forked worker starts
-        # with them loaded (instead of each loading them again, about 1 s of CPU apiece).
-        for t in itertools.islice(todo, 1):
-            records.append(run_episode(t))
+        # One episode runs here first, one with the prediction wrappers if any comes soon: it loads (on a
+        # fresh install: compiles) the kernels once, and every forked worker starts with them (instead of
+        # each loading them again, about 1 s of CPU apiece, or compiling them again, tens of seconds).
+        head = list(itertools.islice(todo, FIRST_EPISODE_LOOKAHEAD))
+        if head:
+            wrapped = (i for i, t in enumerate(head) if t.predictor != "none" or t.intention != "none")
+            records.append(run_episode(head.pop(next(wrapped, 0))))
             progress()
+        todo = itertools.chain(head, todo)
     pool = ProcessPoolExecutor(
         max_workers=workers,
         mp_context=multiprocessing.get_context(method),
@@ -200,6 +209,8 @@ def _run_local(
         # are; records are sorted afterwards, so the order of completion never shows in the results.
         for t in itertools.islice(todo, limit):
             in_flight.add(pool.submit(run_episode_guarded, t))
+        if while_waiting is not None:
+            while_waiting()
         while in_flight:
             done, in_flight = wait(in_flight, return_when=FIRST_COMPLETED)
             for fut in done:
@@ -373,11 +384,14 @@ def run_tasks(
     show_progress: bool = True,
     ray_timeout: float = DEFAULT_RAY_TIMEOUT,
     total: int | None = None,
+    while_waiting: Callable[[], None] | None = None,
 ) -> list[EpisodeRecord]:
     """Run every task and return the records sorted by (scenario, policy, episode).
 
     `tasks` may be a lazy iterable (then give `total` for the progress bar); at most
-    ``IN_FLIGHT_PER_WORKER * workers`` of them are submitted at a time.
+    ``IN_FLIGHT_PER_WORKER * workers`` of them are submitted at a time. `while_waiting` is work for this
+    process while a local pool's workers run the first episodes (called once; e.g. imports the outputs
+    need); it is not called without a pool.
 
     Raises:
         RunInterrupted: SIGINT or SIGTERM arrived; pending work is cancelled and the workers are stopped.
@@ -393,7 +407,7 @@ def run_tasks(
                 if backend == "ray":
                     records = _run_ray(tasks, address, workers, bar.update, ray_timeout)
                 else:
-                    records = _run_local(tasks, workers, bar.update)
+                    records = _run_local(tasks, workers, bar.update, while_waiting)
             except KeyboardInterrupt:  # SIGINT that arrived outside our handler's reach
                 raise RunInterrupted(signal.SIGINT) from None
     finally:
