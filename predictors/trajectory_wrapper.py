@@ -134,6 +134,7 @@ def resolve_model(model: str | Path) -> SocialRecurrent | str:
     path = model_path(model)
     if path is None:
         return "cvm"
+    _torch()  # one thread in a forked child, before the checkpoint imports torch
     return load_model(path)
 
 
