@@ -82,7 +82,9 @@ def main() -> None:
     if args.rounds < 1 or args.burst <= 0 or args.target <= 0:
         parser.error("--rounds must be >= 1, --burst > 0 and --target > 0")
 
-    import highway_env  # noqa: F401  (registers intersection-v0)
+    from crossing_env.road import register_highway_envs
+
+    register_highway_envs()  # intersection-v0 (crossing_env imports only highway-env's lanes)
 
     timers = {"Crossing-v0": Timer(gym.make("crossing_env/Crossing-v0", scenario=args.scenario))}
     if args.wrappers:

@@ -7,14 +7,49 @@ signal are plain geometry here. All numbers that the hot path needs are precompu
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 
 import numpy as np
-from highway_env.road.lane import LineType, StraightLane
-from highway_env.road.road import RoadNetwork
+from gymnasium.envs.registration import EnvSpec, registry
 
 from crossing_env.types import ConflictArea
 from scenarios.config import CrosswalkConfig, RoadConfig, SignalConfig
+
+HIGHWAY_ENV_MARKER = "highway-v0"
+"""The id whose presence makes highway-env's package import skip registering its own envs."""
+
+
+def _import_lanes() -> None:
+    """Import highway-env's lane modules without its env registry.
+
+    Registering highway-env's envs imports their modules, which load matplotlib's pyplot and pandas: about
+    1 s of every process that only needs lanes. highway-env skips the registration when
+    `HIGHWAY_ENV_MARKER` is already registered, so a placeholder stands there during the import. Call
+    `register_highway_envs` to get highway-env's envs in the same process later.
+    """
+    if "highway_env" in sys.modules or HIGHWAY_ENV_MARKER in registry:
+        return
+    placeholder = EnvSpec(HIGHWAY_ENV_MARKER, entry_point="highway_env.envs.highway_env:HighwayEnv")
+    registry[HIGHWAY_ENV_MARKER] = placeholder
+    try:
+        import highway_env  # noqa: F401
+    finally:
+        if registry.get(HIGHWAY_ENV_MARKER) is placeholder:
+            del registry[HIGHWAY_ENV_MARKER]
+
+
+def register_highway_envs() -> None:
+    """Register highway-env's own envs (``intersection-v0``...), which `crossing_env` does not load."""
+    import highway_env
+
+    highway_env._register_highway_envs()  # idempotent
+
+
+_import_lanes()
+
+from highway_env.road.lane import LineType, StraightLane  # noqa: E402
+from highway_env.road.road import RoadNetwork  # noqa: E402
 
 
 @dataclass(frozen=True)

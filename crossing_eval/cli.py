@@ -20,7 +20,7 @@ from agents.sb3 import ModelFileError
 from crossing_common.cli import DefaultsHelpFormatter, int_at_least, positive_float
 from crossing_common.folders import OutputFolderError, StagedFolder
 from crossing_eval.grid import GRID_MARKER, make_grid_tasks, parse_grid, write_grid_outputs
-from crossing_eval.outputs import write_outputs
+from crossing_eval.outputs import import_plotting, write_outputs
 from crossing_eval.plugins import (
     PREDICTOR_NAMES,
     default_policies,
@@ -38,6 +38,7 @@ from crossing_eval.runners import (
     RunInterrupted,
     default_workers,
     pool_pays_off,
+    pool_start_method,
     run_tasks,
 )
 from crossing_eval.summary import format_table, summarise
@@ -339,8 +340,12 @@ def _run(
         prefix = "crossing-eval: "
     workers = args.workers
     where = f"{workers} worker(s)"
-    if args.backend == "local" and workers > 1 and not pool_pays_off(len(tasks), workers):
-        workers, where = 1, "in this process (fewer episodes than a worker pool's start-up is worth)"
+    if args.backend == "local" and workers > 1:
+        method = pool_start_method()
+        if pool_pays_off(len(tasks), workers, method):
+            where = f"{workers} worker(s) ({method})"
+        else:
+            workers, where = 1, "in this process (fewer episodes than a worker pool's start-up is worth)"
     print(
         f"{prefix}{len(args.scenarios)} scenario(s) x"
         f" {len(args.policies)} policies x {args.episodes} episode(s) = {len(tasks)} episodes,"
@@ -356,6 +361,7 @@ def _run(
             args.address,
             show_progress=not args.no_progress,
             ray_timeout=args.ray_timeout,
+            while_waiting=import_plotting,
         )
     except RayConnectionError as exc:
         args.exit_now = exc.abandoned

@@ -154,16 +154,23 @@ MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*", "<", ">")
 """Marker per policy (cycled) in both plots."""
 
 
-def _plot(
-    records: Sequence[EpisodeRecord], summary: dict[str, Any], policies: Sequence[str], out: Path
-) -> None:
-    """Safety-vs-efficiency scatter and min-TTC distributions as PNG (written atomically)."""
+def import_plotting() -> Any:
+    """The pyplot module on the Agg backend (about 1 s to import: a run does it while its workers run)."""
     # Imported here, not at the top: the Agg backend is selected only when plotting, never as a side
     # effect of importing this module.
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _plot(
+    records: Sequence[EpisodeRecord], summary: dict[str, Any], policies: Sequence[str], out: Path
+) -> None:
+    """Safety-vs-efficiency scatter and min-TTC distributions as PNG (written atomically)."""
+    plt = import_plotting()
 
     names = [p for p in policies if p in summary["per_policy"]]
     plots: list[tuple[str, Callable[[Axes], None]]] = [

@@ -27,6 +27,8 @@ from crossing_eval.tasks import EpisodeRecord, EpisodeTask, run_episode
 
 IN_FLIGHT_PER_WORKER = 2
 """Tasks submitted at a time per worker (lazy submission keeps memory flat whatever ``--episodes`` is)."""
+FIRST_EPISODE_LOOKAHEAD = 64
+"""Tasks searched for one with the prediction wrappers, to run first in this process before forking."""
 DEFAULT_RAY_TIMEOUT = 30.0
 """Seconds to wait for a Ray cluster at ``--address`` before giving up with a message."""
 
@@ -79,19 +81,34 @@ def default_workers() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-WORKER_START_SECONDS = 4.0
-"""Rough CPU cost of starting one worker process (torch, the env, the predictor models and PPO imported
-and loaded again) on a warm install; measured 3-5 s, far more when the CPUs are shared."""
+WORKER_START_SECONDS = {"forkserver": 4.0, "fork": 0.3}
+"""Rough CPU cost of starting one worker process. A forkserver worker imports the packages and loads the
+env, the predictor models and the policies again: 3-5 s on a warm install, far more when the CPUs are
+shared. A forked one starts with the parent's (the preflight's envs and models included); it only loads
+the compiled kernels, which this process would otherwise load itself."""
 EPISODE_SECONDS = 0.5
 """Rough mean CPU cost of one episode of the default table (0.07 s for constant speed, ~1 s for a yielding
 policy under the prediction wrappers)."""
 
 
-def pool_pays_off(total: int | None, workers: int) -> bool:
+def pool_start_method() -> str:
+    """How worker processes start: ``fork`` while this process has not imported torch, else ``forkserver``.
+
+    A forked child of a process that has run torch ops can hang in torch's thread pool; the default run
+    does not import torch (the shipped predictor and learned policy run without it), so its workers are
+    forked from the preflight's process, with its imports, envs and models, in milliseconds.
+    """
+    if "torch" in sys.modules or "fork" not in multiprocessing.get_all_start_methods():
+        return "forkserver"
+    return "fork"
+
+
+def pool_pays_off(total: int | None, workers: int, method: str = "forkserver") -> bool:
     """Whether a pool of `workers` processes finishes `total` episodes sooner than this process alone.
 
     The pool saves about ``total * EPISODE_SECONDS * (1 - 1/workers)`` and costs the start-up of its
-    workers; a small run (`crossing-eval --scenarios zebra_case1 --episodes 1`) therefore runs in this
+    workers (`WORKER_START_SECONDS` by start `method`); a small run
+    (`crossing-eval --scenarios zebra_case1 --episodes 1`) with forkserver workers therefore runs in this
     process, with the envs and models the preflight already built. An unknown `total` uses the pool.
     The records are the same either way.
     """
@@ -99,7 +116,7 @@ def pool_pays_off(total: int | None, workers: int) -> bool:
         return False
     if total is None:
         return True
-    return total * EPISODE_SECONDS * (workers - 1) > WORKER_START_SECONDS * workers
+    return total * EPISODE_SECONDS * (workers - 1) > WORKER_START_SECONDS[method] * workers
 
 
 class RunInterrupted(Exception):
@@ -116,8 +133,12 @@ class RunInterrupted(Exception):
 
 
 def _ignore_sigint() -> None:
-    """Worker initializer: Ctrl-C goes to the whole process group; only the parent handles it."""
+    """Worker initializer: Ctrl-C goes to the whole process group; only the parent handles it.
+
+    SIGTERM gets its default action back: a forked worker inherits the parent's `stop_signals` handler.
+    """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 @contextmanager
@@ -151,7 +172,10 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
 
 
 def _run_local(
-    tasks: Iterable[EpisodeTask], workers: int, progress: Callable[[], None]
+    tasks: Iterable[EpisodeTask],
+    workers: int,
+    progress: Callable[[], None],
+    while_waiting: Callable[[], None] | None = None,
 ) -> list[EpisodeRecord]:
     if workers <= 1:
         out = []
@@ -162,11 +186,21 @@ def _run_local(
     records: list[EpisodeRecord] = []
     todo = iter(tasks)
     limit = IN_FLIGHT_PER_WORKER * workers
-    # forkserver, not fork: a forked child of a process that has run torch ops can hang in torch's
-    # thread pool, and the predictor wrappers run torch.
+    # fork only while torch is not imported here (`pool_start_method`); the records are the same either way.
+    method = pool_start_method()
+    if method == "fork":
+        # One episode runs here first, one with the prediction wrappers if any comes soon: it loads (on a
+        # fresh install: compiles) the kernels once, and every forked worker starts with them (instead of
+        # each loading them again, about 1 s of CPU apiece, or compiling them again, tens of seconds).
+        head = list(itertools.islice(todo, FIRST_EPISODE_LOOKAHEAD))
+        if head:
+            wrapped = (i for i, t in enumerate(head) if t.predictor != "none" or t.intention != "none")
+            records.append(run_episode(head.pop(next(wrapped, 0))))
+            progress()
+        todo = itertools.chain(head, todo)
     pool = ProcessPoolExecutor(
         max_workers=workers,
-        mp_context=multiprocessing.get_context("forkserver"),
+        mp_context=multiprocessing.get_context(method),
         initializer=_ignore_sigint,
     )
     try:
@@ -175,6 +209,8 @@ def _run_local(
         # are; records are sorted afterwards, so the order of completion never shows in the results.
         for t in itertools.islice(todo, limit):
             in_flight.add(pool.submit(run_episode_guarded, t))
+        if while_waiting is not None:
+            while_waiting()
         while in_flight:
             done, in_flight = wait(in_flight, return_when=FIRST_COMPLETED)
             for fut in done:
@@ -348,11 +384,14 @@ def run_tasks(
     show_progress: bool = True,
     ray_timeout: float = DEFAULT_RAY_TIMEOUT,
     total: int | None = None,
+    while_waiting: Callable[[], None] | None = None,
 ) -> list[EpisodeRecord]:
     """Run every task and return the records sorted by (scenario, policy, episode).
 
     `tasks` may be a lazy iterable (then give `total` for the progress bar); at most
-    ``IN_FLIGHT_PER_WORKER * workers`` of them are submitted at a time.
+    ``IN_FLIGHT_PER_WORKER * workers`` of them are submitted at a time. `while_waiting` is work for this
+    process while a local pool's workers run the first episodes (called once; e.g. imports the outputs
+    need); it is not called without a pool.
 
     Raises:
         RunInterrupted: SIGINT or SIGTERM arrived; pending work is cancelled and the workers are stopped.
@@ -368,7 +407,7 @@ def run_tasks(
                 if backend == "ray":
                     records = _run_ray(tasks, address, workers, bar.update, ray_timeout)
                 else:
-                    records = _run_local(tasks, workers, bar.update)
+                    records = _run_local(tasks, workers, bar.update, while_waiting)
             except KeyboardInterrupt:  # SIGINT that arrived outside our handler's reach
                 raise RunInterrupted(signal.SIGINT) from None
     finally:

@@ -8,6 +8,7 @@ Everything here is importable at module level, so process-pool workers can unpic
 
 from __future__ import annotations
 
+import sys
 import zlib
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -129,16 +130,14 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
     Raises:
         rollout.WrapperError: a predictor that cannot be loaded (never evaluated silently without it).
     """
-    # Imported here, not at the top, so that `--help` does not load torch; one thread per worker process.
-    try:
-        import torch
-
-        torch.set_num_threads(1)
-    except ImportError:  # pragma: no cover - torch is a hard dependency
-        pass
-
     env, used = _cached_env(task)
-    episode = rollout.run_episode(env, task.seed, policy=build_policy(task.policy, env))
+    policy = build_policy(task.policy, env)
+    # One torch thread per process, where the env or the policy loaded torch (the shipped S-CGRU and the
+    # shipped learned policies run without it: importing torch for nothing costs 1.5 s a process).
+    torch = sys.modules.get("torch")
+    if torch is not None:
+        torch.set_num_threads(1)
+    episode = rollout.run_episode(env, task.seed, policy=policy)
     return EpisodeRecord(
         task=task,
         result=episode.result,

@@ -25,11 +25,14 @@ import tempfile
 from collections.abc import Mapping, Sequence
 from dataclasses import fields
 from pathlib import Path
-
-import torch
+from typing import TYPE_CHECKING
 
 from crossing_common.files import atomic_output, give_default_permissions, write_text_atomic
-from predictors.models import ModelConfig, SocialRecurrent
+
+if TYPE_CHECKING:
+    from predictors.models import SocialRecurrent
+# torch and the models are imported where they are used: the manifest checks serve torch-free inference
+# (`predictors.fast_inference.load_kernel_file`) too.
 
 SHIPPED_DIR = Path(__file__).resolve().parent / "weights"
 """Folder of the checkpoints shipped with the package."""
@@ -40,6 +43,9 @@ MANIFEST = SHIPPED_DIR / "manifest.json"
 MAX_ABS_WEIGHT = 1e3
 """Largest weight magnitude accepted. Trained models here stay below 1; float16 tops out at 65504, where
 a corrupted exponent lands, and the paths such weights predict run to hundreds of metres."""
+SHIPPED_PATTERNS = ("*.pt", "*.kernel.npz")
+"""The shipped files the manifest lists: checkpoints and their torch-free inference arrays
+(`predictors.fast_inference.save_kernel_file`)."""
 CHECKPOINT_FORMAT = "crossing-env/trajectory-predictor/1"
 """Value of a checkpoint's ``format`` field."""
 
@@ -99,6 +105,8 @@ def check_weights(state: Mapping[str, object], path: Path) -> None:
     Raises:
         CheckpointError: naming the tensor and the offending value.
     """
+    import torch
+
     for name, value in state.items():
         if not isinstance(value, torch.Tensor):
             raise CheckpointError(f"{path}: state_dict[{name!r}] is a {type(value).__name__}, not a tensor")
@@ -114,10 +122,15 @@ def check_weights(state: Mapping[str, object], path: Path) -> None:
             )
 
 
+def shipped_files() -> list[Path]:
+    """Every shipped file the manifest covers (`SHIPPED_PATTERNS`), sorted."""
+    return sorted(f for pattern in SHIPPED_PATTERNS for f in SHIPPED_DIR.glob(pattern))
+
+
 def update_manifest(names: Sequence[str] | None = None) -> dict[str, str]:
     """Record the sums of the shipped files (all of them, or just `names`); returns the manifest."""
     manifest = read_manifest()
-    files = sorted(SHIPPED_DIR.glob("*.pt")) if names is None else [SHIPPED_DIR / n for n in names]
+    files = shipped_files() if names is None else [SHIPPED_DIR / n for n in names]
     if names is None:
         manifest = {}
     for f in files:
@@ -128,6 +141,8 @@ def update_manifest(names: Sequence[str] | None = None) -> dict[str, str]:
 
 def save_checkpoint(path: Path, model: SocialRecurrent, meta: dict[str, object]) -> None:
     """Write the checkpoint atomically (temp file + ``os.replace``); weights in float16."""
+    import torch
+
     path.parent.mkdir(parents=True, exist_ok=True)
     payload = {
         "format": CHECKPOINT_FORMAT,
@@ -155,6 +170,10 @@ def load_model(path: str | Path, *, verify_manifest: bool = True) -> SocialRecur
         ValueError: the file is corrupt (checksum, NaN/inf or huge weights: `CheckpointError`), not a
             predictor checkpoint, or its weights do not fit its config; the message names the file.
     """
+    import torch
+
+    from predictors.models import ModelConfig, SocialRecurrent
+
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"predictor checkpoint not found: {path}")
@@ -191,6 +210,8 @@ def load_model(path: str | Path, *, verify_manifest: bool = True) -> SocialRecur
 
 def checkpoint_meta(path: str | Path) -> dict[str, object]:
     """Training metadata stored in a checkpoint (budget, validation scores)."""
+    import torch
+
     payload = torch.load(Path(path), map_location="cpu", weights_only=True)
     return json.loads(payload.get("meta", "{}"))
 

@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-OBS_LEN = 8
-PRED_LEN = 12
+from predictors.constants import OBS_LEN, PRED_LEN
+
 SEQ_LEN = OBS_LEN + PRED_LEN
 SCENES: tuple[str, ...] = ("eth", "hotel", "univ", "zara1", "zara2")
 SPLITS: tuple[str, ...] = ("train", "val", "test")

@@ -5,18 +5,26 @@ per-op dispatch cost (several microseconds per op), far above the wrapper's 2 ms
 one window (all present pedestrians), uses dense ``N x N`` pooling (the same cells and sector test as
 :func:`predictors.pooling._grid_layout`), and is tested to match the torch model to float32 rounding. Sampling
 still goes through torch.
+
+A shipped checkpoint's unpacked arrays are also shipped as data (``<checkpoint stem>.kernel.npz``, listed in
+the weights manifest, made by `save_kernel_file`): `load_kernel_file` builds the predictor from them without
+importing torch (about 1.5 s of every process that only needs the most-likely paths), the same arrays
+bit for bit, so the same predictions.
 """
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
 from numba import njit
 
-from predictors.data import OBS_LEN, PRED_LEN
-from predictors.models import SocialRecurrent
+from predictors.constants import OBS_LEN, PRED_LEN
+
+if TYPE_CHECKING:
+    from predictors.models import SocialRecurrent
 
 
 @njit(cache=True, nogil=True)
@@ -214,6 +222,8 @@ class FastPredictor:
     """
 
     def __init__(self, model: SocialRecurrent) -> None:
+        import torch
+
         c = model.config
         self.config = c
         sd = {k: v.detach().cpu().numpy().astype(np.float32) for k, v in model.state_dict().items()}
@@ -246,6 +256,8 @@ class FastPredictor:
         Absent parts are 1-element dummies of the same rank, so every model kind shares one compiled
         signature.
         """
+        import torch
+
         c = self.config
         z1, z2 = np.zeros(1, np.float32), np.zeros((1, 1), np.float32)
         if self.pooling:
@@ -272,3 +284,93 @@ class FastPredictor:
     def predict(self, obs: np.ndarray) -> np.ndarray:
         """``(N, 12, 2)`` most-likely future of ``obs (N, 8, 2)``, one window, via the compiled kernel."""
         return _rollout_kernel(np.ascontiguousarray(obs, np.float32), *self._kernel_args)
+
+
+KERNEL_SUFFIX = ".kernel.npz"
+"""Suffix replacing ``.pt`` in the name of a checkpoint's kernel file."""
+KERNEL_ARRAYS = (
+    "geometry",
+    "flags",
+    "w_in",
+    "b_in",
+    "w_x_emb",
+    "w_x_soc",
+    "b_x",
+    "w_cells",
+    "b_pool",
+    "empty_soc",
+    "w_head",
+    "b_head",
+    "u_a",
+    "u_b",
+    "b_u",
+)
+"""The array arguments of :func:`_rollout_kernel` after ``kind``, in order, as named in a kernel file."""
+
+
+def kernel_file(checkpoint: str | Path) -> Path:
+    """The kernel file beside `checkpoint` (``s-cgru_all.pt`` → ``s-cgru_all.kernel.npz``)."""
+    path = Path(checkpoint)
+    return path.with_name(path.stem + KERNEL_SUFFIX)
+
+
+def save_kernel_file(checkpoint: str | Path) -> Path:
+    """Write the kernel file of `checkpoint` (loaded with torch, every check) beside it; returns its path.
+
+    It records the checkpoint's sha256, so a retrained checkpoint never meets an old kernel file. Add the
+    file to the manifest afterwards (``python -m studies.verify_weights --update``).
+    """
+    from predictors.checkpoints import load_model, sha256_file
+
+    checkpoint = Path(checkpoint)
+    fast = FastPredictor(load_model(checkpoint))
+    kind, *arrays, obs_len, pred_len = fast._kernel_args
+    assert (obs_len, pred_len) == (OBS_LEN, PRED_LEN) and len(arrays) == len(KERNEL_ARRAYS)
+    out = kernel_file(checkpoint)
+    with out.open("wb") as fh:
+        np.savez(
+            fh,
+            kind=np.int64(kind),
+            source_sha256=np.str_(sha256_file(checkpoint)),
+            **dict(zip(KERNEL_ARRAYS, arrays, strict=True)),
+        )
+    return out
+
+
+def load_kernel_file(checkpoint: str | Path) -> FastPredictor | None:
+    """The shipped `checkpoint`'s predictor from its kernel file, without torch; None where there is none.
+
+    None too (the caller then loads the checkpoint with torch) when the kernel file was made from other
+    bytes than the checkpoint's, or the checkpoint is not a shipped one.
+
+    Raises:
+        predictors.checkpoints.CheckpointError: the checkpoint or its kernel file differs from the
+            manifest, or holds non-finite or huge weights.
+    """
+    from predictors.checkpoints import (
+        MAX_ABS_WEIGHT,
+        CheckpointError,
+        is_shipped,
+        sha256_file,
+        verify_shipped,
+    )
+
+    checkpoint = Path(checkpoint)
+    path = kernel_file(checkpoint)
+    if not (checkpoint.is_file() and path.is_file() and is_shipped(checkpoint)):
+        return None
+    verify_shipped(checkpoint)
+    verify_shipped(path)
+    with np.load(path, allow_pickle=False) as data:
+        if str(data["source_sha256"]) != sha256_file(checkpoint):
+            return None
+        kind = int(data["kind"])
+        arrays = [np.ascontiguousarray(data[name]) for name in KERNEL_ARRAYS]
+    for name, a in zip(KERNEL_ARRAYS, arrays, strict=True):
+        if a.dtype.kind == "f" and not (
+            np.isfinite(a).all() and np.abs(a).max(initial=0.0) <= MAX_ABS_WEIGHT
+        ):
+            raise CheckpointError(f"{path}: non-finite or huge values in {name!r}")
+    fast = FastPredictor.__new__(FastPredictor)
+    fast._kernel_args = (kind, *arrays, OBS_LEN, PRED_LEN)
+    return fast

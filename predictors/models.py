@@ -31,10 +31,10 @@ import torch
 from torch import nn
 
 from predictors.cgru import ComplexGRUCell
+from predictors.constants import MODEL_KINDS
 from predictors.data import OBS_LEN, PRED_LEN
 from predictors.pooling import HeadingTracker, Layout, PoolingGeometry, grid_layout
 
-MODEL_KINDS: tuple[str, ...] = ("s-cgru", "s-gru", "s-lstm", "lstm")
 PoolGroups = tuple[torch.Tensor, torch.Tensor, torch.Tensor, int, torch.Tensor] | None
 """One step's pooling layout ``(i, j, slot, most, used)`` from :meth:`SocialRecurrent.pool_groups`."""
 

@@ -33,12 +33,12 @@ seeded reset), never from a global RNG.
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import gymnasium as gym
 import numpy as np
-import torch
 from gymnasium import spaces
 
 from crossing_env.observation import (
@@ -49,11 +49,19 @@ from crossing_env.observation import (
     PedestrianColumn,
     PointColumn,
 )
-from predictors.baselines import cvm, cvm_samples
 from predictors.checkpoints import WEIGHTS_DIR, load_model
-from predictors.data import OBS_LEN, PRED_LEN
-from predictors.fast_inference import FastPredictor
-from predictors.models import MODEL_KINDS, SocialRecurrent
+from predictors.constants import MODEL_KINDS, OBS_LEN, PRED_LEN
+from predictors.fast_inference import FastPredictor, load_kernel_file
+
+if TYPE_CHECKING:
+    import torch
+
+    from predictors.models import SocialRecurrent
+
+# torch is imported only when a model must be loaded from its checkpoint or sampled (`_torch`): the
+# most-likely paths of a shipped model come from its kernel file (`predictors.fast_inference`).
+_FORKED = False
+"""This process is a forked child (set by `_one_thread_after_fork`)."""
 
 
 def _one_thread_after_fork() -> None:
@@ -62,13 +70,27 @@ def _one_thread_after_fork() -> None:
     Without this, ``gym.make_vec(..., vectorization_mode="async", wrappers=[TrajectoryPrediction])``
     with the default ``fork`` start hangs silently in the children's first torch operation (the parent
     built a dummy env, which started torch's OpenMP pool). One thread per env worker is what a vector
-    env wants anyway; spawn/forkserver children are not affected.
+    env wants anyway; spawn/forkserver children are not affected. A child that imports torch only later
+    gets the same setting in `_torch`.
     """
-    torch.set_num_threads(1)
+    global _FORKED
+    _FORKED = True
+    if "torch" in sys.modules:
+        sys.modules["torch"].set_num_threads(1)
 
 
 if hasattr(os, "register_at_fork"):
     os.register_at_fork(after_in_child=_one_thread_after_fork)
+
+
+def _torch() -> Any:
+    """The torch module, imported on first use (one thread in a forked child, as `_one_thread_after_fork`)."""
+    import torch
+
+    if _FORKED:
+        torch.set_num_threads(1)
+    return torch
+
 
 MAX_STEP = 3.0
 """Largest displacement per 0.4 s step assumed when bounding predictions, metres (clipped beyond)."""
@@ -98,13 +120,22 @@ def match_translated(
     return perm, shift
 
 
+def model_path(model: str | Path) -> Path | None:
+    """The checkpoint of ``"cvm"`` (None), a model kind (shipped ``<kind>_all.pt``) or a checkpoint path."""
+    if isinstance(model, str) and model == "cvm":
+        return None
+    if isinstance(model, str) and model in MODEL_KINDS:
+        return WEIGHTS_DIR / f"{model}_all.pt"
+    return Path(model)
+
+
 def resolve_model(model: str | Path) -> SocialRecurrent | str:
     """``"cvm"``, a model kind (shipped ``<kind>_all.pt``), or a checkpoint path → model (or ``"cvm"``)."""
-    if isinstance(model, str) and model == "cvm":
+    path = model_path(model)
+    if path is None:
         return "cvm"
-    if isinstance(model, str) and model in MODEL_KINDS:
-        return load_model(WEIGHTS_DIR / f"{model}_all.pt")
-    return load_model(Path(model))
+    _torch()  # one thread in a forked child, before the checkpoint imports torch
+    return load_model(path)
 
 
 class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
@@ -134,8 +165,13 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
             raise ValueError(f"num_samples must be >= 0, got {num_samples}")
         self.num_slots = hist.shape[0]
         self.num_samples = num_samples
-        self.model = resolve_model(model)
-        self._fast = FastPredictor(self.model) if isinstance(self.model, SocialRecurrent) else None
+        self._model_spec = model
+        self._model: SocialRecurrent | str | None = None
+        path = model_path(model)
+        self._fast = load_kernel_file(path) if path is not None and not num_samples else None
+        if self._fast is None:  # no kernel file (or samples wanted): the checkpoint, through torch
+            self._model = resolve_model(model)
+            self._fast = FastPredictor(self._model) if not isinstance(self._model, str) else None
         bound = float(max(np.abs(hist.low).max(), np.abs(hist.high).max())) + PRED_LEN * MAX_STEP
         self.bound = np.float32(bound) if np.isfinite(bound) else np.float32(np.finfo(np.float32).max)
         new = dict(space.spaces)
@@ -147,7 +183,8 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
                 -self.bound, self.bound, (self.num_slots, num_samples, PRED_LEN, xy), np.float32
             )
         self.observation_space = spaces.Dict(new)
-        self._generator = torch.Generator().manual_seed(0)
+        self._seed = 0
+        self._gen: torch.Generator | None = None  # made on first use: sampling is the only user
         self._sse_cache: dict[int, torch.Tensor] = {}
         self._anchor: tuple[np.ndarray, np.ndarray] | None = None  # (history, paths) last computed
         self.cache_hits = 0
@@ -160,16 +197,38 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
     ) -> tuple[Any, dict[str, Any]]:
         """Reset the env; a seed also reseeds the sampling generator so episodes are reproducible."""
         if seed is not None:
-            self._generator.manual_seed(int(seed))
+            self._seed = int(seed)
+            if self._gen is not None:
+                self._gen.manual_seed(self._seed)
         return super().reset(seed=seed, options=options)
+
+    @property
+    def model(self) -> SocialRecurrent | str:
+        """The torch model (or ``"cvm"``), loaded from the checkpoint on first use."""
+        if self._model is None:
+            self._model = resolve_model(self._model_spec)
+        return self._model
+
+    @property
+    def _generator(self) -> torch.Generator:
+        """The sampling generator, seeded with the last reset's seed (0 before any)."""
+        if self._gen is None:
+            self._gen = _torch().Generator().manual_seed(self._seed)
+        return self._gen
 
     def _predict(self, hist: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         if self._fast is not None and not self.num_samples:
             return self._fast.predict(hist), None  # compiled kernel: no torch dispatch on the hot path
         return self._predict_torch(hist)
 
-    @torch.inference_mode()
     def _predict_torch(self, hist: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        torch = _torch()
+        with torch.inference_mode():
+            return self._predict_inference(torch, hist)
+
+    def _predict_inference(self, torch: Any, hist: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        from predictors.baselines import cvm, cvm_samples
+
         obs = torch.from_numpy(np.ascontiguousarray(hist, dtype=np.float32))
         n = obs.shape[0]
         sse = self._sse_cache.get(n)

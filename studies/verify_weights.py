@@ -1,6 +1,7 @@
 """Verify the shipped predictor checkpoints against their sha256 manifest, or rewrite the manifest.
 
-``python -m studies.verify_weights`` checks every ``predictors/weights/*.pt`` (exit 1 if one fails);
+``python -m studies.verify_weights`` checks every ``predictors/weights/*.pt`` and ``*.kernel.npz`` (exit 1
+if one fails);
 ``--update`` rewrites ``predictors/weights/manifest.json`` from the files present, after a deliberate
 retraining (``crossing-train --force`` already updates the entry of the file it replaced).
 """
@@ -25,7 +26,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.update:
         print(f"wrote {checkpoints.MANIFEST} ({len(update_manifest())} files)")
         return 0
-    files = sorted(checkpoints.SHIPPED_DIR.glob("*.pt"))
+    files = checkpoints.shipped_files()
     bad = 0
     for f in files:
         try:

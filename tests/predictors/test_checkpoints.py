@@ -17,8 +17,9 @@ from predictors.train import TrainConfig, main, output_path
 
 def test_every_shipped_checkpoint_matches_the_manifest():
     manifest = json.loads((WEIGHTS_DIR / "manifest.json").read_text())
-    assert set(manifest) == {p.name for p in WEIGHTS_DIR.glob("*.pt")}
-    for path in WEIGHTS_DIR.glob("*.pt"):
+    assert set(manifest) == {p.name for p in checkpoints.shipped_files()}  # checkpoints and kernel files
+    assert any(name.endswith(".kernel.npz") for name in manifest)
+    for path in checkpoints.shipped_files():
         checkpoints.verify_shipped(path)
 
 

@@ -1,0 +1,107 @@
+"""The shipped S-CGRU's kernel file: the checkpoint's own arrays, used without torch, refused when stale."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from predictors import checkpoints, trajectory_wrapper
+from predictors.checkpoints import WEIGHTS_DIR, CheckpointError, load_model
+from predictors.fast_inference import (
+    KERNEL_ARRAYS,
+    FastPredictor,
+    kernel_file,
+    load_kernel_file,
+    save_kernel_file,
+)
+from predictors.trajectory_wrapper import TrajectoryPrediction
+from tests.predictors.test_wrapper import FakePedEnv
+
+SHIPPED = WEIGHTS_DIR / "s-cgru_all.pt"
+
+
+def _windows(n: int, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    start = rng.uniform(-8, 8, (n, 1, 2))
+    vel = rng.uniform(-0.6, 0.6, (n, 1, 2))
+    return (start + vel * np.arange(8)[None, :, None] + rng.normal(0, 0.05, (n, 8, 2))).astype(np.float32)
+
+
+def test_the_shipped_kernel_file_holds_the_checkpoints_arrays_bit_for_bit() -> None:
+    from_torch = FastPredictor(load_model(SHIPPED))._kernel_args
+    from_file = load_kernel_file(SHIPPED)
+    assert from_file is not None, "the shipped kernel file is missing or stale: run save_kernel_file"
+    assert len(from_file._kernel_args) == len(from_torch) == len(KERNEL_ARRAYS) + 3
+    for a, b in zip(from_file._kernel_args, from_torch, strict=True):
+        if isinstance(b, np.ndarray):
+            assert a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b)
+        else:
+            assert a == b
+    for n, seed in ((1, 0), (5, 1), (16, 2)):
+        obs = _windows(n, seed)
+        assert np.array_equal(from_file.predict(obs), FastPredictor(load_model(SHIPPED)).predict(obs))
+
+
+def test_the_wrapper_uses_the_kernel_file_and_loads_the_model_only_when_asked(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    env = TrajectoryPrediction(FakePedEnv(), model="s-cgru")
+    assert env._model is None  # no torch model built for the most-likely paths
+    obs, _ = env.reset(seed=3)
+    monkeypatch.setattr(trajectory_wrapper, "load_kernel_file", lambda path: None)
+    reference = TrajectoryPrediction(FakePedEnv(), model="s-cgru")  # no kernel file: through torch
+    assert reference._model is not None
+    ref, _ = reference.reset(seed=3)
+    assert np.array_equal(obs["predicted_paths"], ref["predicted_paths"])
+    assert env.model.config.kind == "s-cgru"  # still there on demand
+
+
+def _copy_shipped(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """The shipped checkpoint and kernel file in a stand-in weights folder with its own manifest."""
+    monkeypatch.setattr(checkpoints, "SHIPPED_DIR", tmp_path)
+    monkeypatch.setattr(checkpoints, "MANIFEST", tmp_path / "manifest.json")
+    pt = tmp_path / SHIPPED.name
+    shutil.copy(SHIPPED, pt)
+    shutil.copy(kernel_file(SHIPPED), kernel_file(pt))
+    checkpoints.update_manifest()
+    return pt
+
+
+def test_a_stale_kernel_file_is_not_used(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    pt = _copy_shipped(tmp_path, monkeypatch)
+    assert load_kernel_file(pt) is not None
+    with np.load(kernel_file(pt), allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays["source_sha256"] = np.str_("0" * 64)  # made from other bytes than this checkpoint's
+    with kernel_file(pt).open("wb") as fh:
+        np.savez(fh, **arrays)
+    checkpoints.update_manifest()
+    assert load_kernel_file(pt) is None  # the caller falls back to the checkpoint
+
+
+def test_a_kernel_file_that_differs_from_the_manifest_is_refused(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    pt = _copy_shipped(tmp_path, monkeypatch)
+    with np.load(kernel_file(pt), allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files}
+    arrays["w_head"] = arrays["w_head"] * np.float32(1.01)
+    with kernel_file(pt).open("wb") as fh:
+        np.savez(fh, **arrays)
+    with pytest.raises(CheckpointError, match="manifest"):
+        load_kernel_file(pt)
+
+
+def test_save_kernel_file_round_trips(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    pt = _copy_shipped(tmp_path, monkeypatch)
+    kernel_file(pt).unlink()
+    assert load_kernel_file(pt) is None
+    assert save_kernel_file(pt) == kernel_file(pt)
+    checkpoints.update_manifest()
+    fast = load_kernel_file(pt)
+    assert fast is not None
+    obs = _windows(6, 4)
+    assert np.array_equal(fast.predict(obs), FastPredictor(load_model(pt)).predict(obs))
