@@ -8,7 +8,7 @@ the Intelligent Driver Model.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import ClassVar
+from typing import ClassVar, NamedTuple
 
 import numpy as np
 
@@ -41,6 +41,21 @@ class TrackMemory:
     """Seen on the carriageway at some point."""
     away_time: float = 0.0
     """Time (s) it has kept walking along the kerb away from the crossing, without a break."""
+
+
+class LegalDuty(NamedTuple):
+    """What the legal-yield step of the last `YieldingPolicy._targets` call saw (read by `agents.shield`)."""
+
+    line: np.ndarray
+    """(B,) the crossing's stop point (m ahead of the ego's front): `stop_buffer` before the stop line, or
+    before the crossing's near edge once past the line; negative once the front is past it. Unlike the
+    legal target it is never given up (inf only without a crossing ahead)."""
+    needs: np.ndarray
+    """(B,) bool: a legal duty holds now (someone on the zebra in or towards the ego's half, someone waiting
+    at the kerb who has not declined, a red light), whether or not the rule can still stop for it."""
+    candidates: np.ndarray
+    """(B, K) bool: pedestrians off the road at a zebra ahead whom the rule has not set aside (settled by its
+    track memory, or declined its offer): they may yet wait at the kerb or step onto the zebra."""
 
 
 class YieldingPolicy:
@@ -99,6 +114,8 @@ class YieldingPolicy:
         self._tracks: list[dict[int, TrackMemory]] = []
         self._clock = np.zeros(0)
         self._last_to_stop = np.zeros(0)
+        self.duty: LegalDuty | None = None
+        """The legal-yield state of the last call (`LegalDuty`), for `agents.shield.YieldingShield`."""
 
     def _settled(self, view: View) -> np.ndarray:
         """Update the track memory; return (B, K): pedestrians not waiting to cross by what they did.
@@ -240,12 +257,12 @@ class YieldingPolicy:
         crossing_ahead = view.past[:, None] < 0.0
         at_crossing = self._at_crossing(view)
         # Stop target for crossing-related yields: the stop line, or the crossing's edge once past the line.
-        line_target = np.where(
+        stop_point = np.where(
             view.to_stop > 0.0,
             view.to_stop - cfg.stop_buffer,
             view.to_stop + cfg.stop_line_offset - cfg.stop_buffer,
         )
-        line_target = np.where(line_target > -0.3, np.maximum(line_target, 0.0), np.inf)  # (B,)
+        line_target = np.where(stop_point > -0.3, np.maximum(stop_point, 0.0), np.inf)  # (B,)
 
         # 1. Legal yield.
         use_pred = cfg.use_predictions
@@ -278,6 +295,11 @@ class YieldingPolicy:
         can_stop = (a_req <= limit) | (v < 0.5)
         self._committed = needs_line & can_stop
         legal_target = np.where(needs_line & can_stop, line_target, np.inf)
+        self.duty = LegalDuty(
+            line=np.where(view.past < 0.0, stop_point, np.inf),
+            needs=needs_line,
+            candidates=zebra & crossing_ahead & view.present & ~view.on_road & ~settled & ~declined,
+        )
 
         # 2. Conflict check (constant velocity ∪ predicted path).
         t_in, t_out = corridor_interval(view.py, view.vy, hw)
