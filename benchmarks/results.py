@@ -263,6 +263,13 @@ def _render_value_of_prediction_summary(data: dict[str, Any]) -> str:
     return render_summary(data)
 
 
+@functools.cache
+def _value_fingerprint() -> str:
+    from studies.value_of_prediction import value_fingerprint
+
+    return value_fingerprint()
+
+
 def _measure_predictor_checkpoints() -> dict[str, Any]:
     from studies.predictor_tables import measure_checkpoints
 
@@ -423,6 +430,7 @@ ENTRIES: dict[str, Entry] = {
             _measure_value_of_prediction,
             _render_value_of_prediction,
             REPO / "docs" / "value_of_prediction.md",
+            fingerprint=_value_fingerprint,
         ),
         Entry(
             "value_of_prediction_summary",
@@ -430,6 +438,7 @@ ENTRIES: dict[str, Entry] = {
             _measure_value_of_prediction,
             _render_value_of_prediction_summary,
             REPO / "README.md",
+            fingerprint=_value_fingerprint,
             data="value_of_prediction",
         ),
         Entry(
@@ -491,6 +500,8 @@ def write_block(entry: Entry, block: str) -> bool:
         count=1,
         flags=re.S,
     )
+    if begin not in text or end not in text:
+        raise ValueError(f"{entry.document}: no {begin} ... {end} block")
     if new == text:
         return False
     entry.document.write_text(new, encoding="utf-8")

@@ -33,6 +33,9 @@ __all__ = ["METRICS", "analyse", "plot_curve", "render_body", "render_summary"]
 
 N_RESAMPLES = 2000
 """Bootstrap resamples of every interval."""
+NO_ADDED_DELAY = 0.02
+"""'No added delay' for the path oracle's target: the delay difference's interval includes 0 (or lies below
+it) and its point estimate is within this share of the reference's mean delay."""
 DOMINANT_SHARE = 1 / 3
 """A scenario holding more than this share of the reference row's obligations is left out of the check."""
 
@@ -343,13 +346,15 @@ def _targets(data: dict[str, Any]) -> list[str]:
         ttc, hb, dl = m["min_ttc_p5"], m["hard_brakes"], m["mean_delay"]
         ttc_ok = ttc["diff_ci"][0] > 0
         hb_ok = hb["diff_ci"][1] < 0
-        delay_ok = dl["diff_ci"][0] <= 0
+        delay_ok = dl["diff_ci"][0] <= 0 and dl["diff"] <= NO_ADDED_DELAY * ref["mean_delay"]["value"]
         out.append(
             f"- Path oracle: min-TTC p5 {_f(ttc['diff'], 2, True)} s [{_f(ttc['diff_ci'][0], 2, True)},"
             f" {_f(ttc['diff_ci'][1], 2, True)}], hard brakes {_f(hb['diff'], 2, True)}/ep"
             f" [{_f(hb['diff_ci'][0], 2, True)}, {_f(hb['diff_ci'][1], 2, True)}], delay"
             f" {_f(dl['diff'], 2, True)} s [{_f(dl['diff_ci'][0], 2, True)}, {_f(dl['diff_ci'][1], 2, True)}]"
-            " (target: min-TTC p5 or hard brakes better with the interval excluding 0, no added delay):"
+            " (target: min-TTC p5 or hard brakes better with the interval excluding 0, and no added delay:"
+            f" an interval that includes 0 and a point estimate within {NO_ADDED_DELAY:.0%} of the"
+            " reference's delay):"
             f" **{'met' if (ttc_ok or hb_ok) and delay_ok else 'missed'}**."
         )
     return out
@@ -362,10 +367,11 @@ def render_body(data: dict[str, Any]) -> str:
     degraded = [r for r in data["rows"] if r["kind"] == "degraded"]
     lines = [
         f"Measured with `{s['command'].strip()}` on commit `{data['commit'][:12]}`"
-        f" in {data['wall_seconds']:.0f} s (2 workers); rendered from"
+        f" ({s.get('workers', 2)} workers: the rows' episodes took {data.get('rows_wall_seconds', 0):.0f} s,"
+        f" the run that analysed them {data['wall_seconds']:.0f} s); rendered from"
         " `benchmarks/results/value_of_prediction.json` by `python -m benchmarks.results`.",
         "",
-        f"Policy `{s['policy']}` on all {len(s['scenarios'])} built-in scenarios,"
+        f"Policy `{s['policy']}` on {len(s['scenarios'])} scenarios ({', '.join(s['scenarios'])}),"
         f" {s['episodes']} episodes each (base seed {s['seed']}), every row on the same episodes; the"
         f" path rows (oracle, CVM, S-CGRU) on the first {s['path_episodes']} of each scenario, the degraded"
         f" intent rows on the first {s['flip_episodes']} and the degraded path rows on the first"
@@ -416,7 +422,8 @@ def render_summary(data: dict[str, Any]) -> str:
     s = data["settings"]
     return "\n".join(
         [
-            f"{s['episodes']} paired episodes per scenario and row on {len(s['scenarios'])} scenarios"
+            f"Paired on {len(s['scenarios'])} scenarios, {s['episodes']} episodes each per intention row"
+            f" and {s['path_episodes']} per path row"
             " (rendered from `benchmarks/results/value_of_prediction.json`; every table, the safety"
             " margins and the accuracy-to-value curve in"
             " [docs/value_of_prediction.md](docs/value_of_prediction.md)):",
@@ -427,7 +434,7 @@ def render_summary(data: dict[str, Any]) -> str:
 
 
 def _compliance_table(data: dict[str, Any], rows: Sequence[dict[str, Any]]) -> list[str]:
-    head = ["scenario", "share", *(_label(r) for r in rows)]
+    head = ["scenario", "share", *(f"{_label(r)} (n={r['episodes']})" for r in rows)]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for sc, share in data["obligation_share"].items():
         cells = [sc, f"{share:.0%}"]

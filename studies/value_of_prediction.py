@@ -49,6 +49,39 @@ NOISES: tuple[float, ...] = (0.5, 1.5)
 """Final-displacement error scales (m, per axis) of the degraded path oracle."""
 
 
+FINGERPRINT_STEPS = 150
+"""Steps of each fingerprint episode (15 s)."""
+
+
+def value_fingerprint() -> str:
+    """Hash of short `predictive_yielding` rollouts under every kind of row's wrappers, on one zebra.
+
+    Intent: the oracle, learned, QLB and a flipped oracle; paths: CVM, S-CGRU and a noisy oracle.
+
+    The registry's behaviour fingerprint drives `yielding` only; these rows go stale when the predictors,
+    the degraded oracles or `predictive_yielding` change what an episode gives. The plain path oracle's
+    rollout is left out (its noisy version runs it) to keep the check cheap.
+    """
+    import hashlib
+
+    from crossing_eval.tasks import episode_seed
+    from rollout import RolloutSpec, build, run_episode
+
+    digest = hashlib.sha256()
+    seed = episode_seed(BASE_SEED, "zebra_case1", 0)
+    probes = [("oracle", "none"), ("learned", "none"), ("qlb", "none"), ("oracle-flip=0.4", "none")]
+    probes += [("none", "cvm"), ("none", "s-cgru"), ("none", "oracle-noise=1.5")]
+    for intention, predictor in probes:
+        spec = RolloutSpec(scenario="zebra_case1", policy=POLICY, intention=intention, predictor=predictor)
+        run = build(spec)
+        episode = run_episode(run.env, seed, policy=run.policy, max_steps=FINGERPRINT_STEPS)
+        run.env.close()
+        digest.update(f"{intention}/{predictor}".encode())
+        digest.update(json.dumps(episode.actions).encode())
+        digest.update(json.dumps(episode.result, sort_keys=True, default=str).encode())
+    return digest.hexdigest()[:16]
+
+
 def row_names(flips: Sequence[float] = FLIPS, noises: Sequence[float] = NOISES) -> list[tuple[str, str]]:
     """(intention, predictor) of every row, the reference first, the expensive path rows last."""
     rows = [("none", "none")] + [(i, "none") for i in INTENT_ROWS]
@@ -68,10 +101,12 @@ def run_rows(
     episodes: dict[tuple[str, str], int],
     runs: Path,
     workers: int,
+    fingerprint: str = "",
 ) -> dict[tuple[str, str], list[dict[str, Any]]]:
     """Episodes of every row (read from ``runs`` where already there).
 
-    Each row is a list of {scenario, episode, seed, result}.
+    Each row is a list of {scenario, episode, seed, result}. A stored row is used only if it was run with
+    the same `fingerprint` (of the behaviour it measures) and scenarios, and has enough episodes.
     """
     from crossing_eval.runners import run_tasks
     from crossing_eval.tasks import make_tasks
@@ -83,7 +118,8 @@ def run_rows(
         path = _row_file(runs, intention, predictor)
         if path.exists():
             stored = json.loads(path.read_text(encoding="utf-8"))
-            if stored["episodes"] >= n and stored["scenarios"] == list(scenarios):
+            same = stored.get("fingerprint") == fingerprint and stored["scenarios"] == list(scenarios)
+            if same and stored["episodes"] >= n:
                 out[(intention, predictor)] = [r for r in stored["records"] if r["episode"] < n]
                 continue
         tasks = make_tasks(scenarios, [POLICY], n, BASE_SEED, predictor, intention)
@@ -95,7 +131,13 @@ def run_rows(
             {"scenario": r.task.scenario, "episode": r.task.episode, "seed": r.task.seed, "result": r.result}
             for r in records
         ]
-        data = {"episodes": n, "scenarios": list(scenarios), "wall_seconds": wall, "records": rows_out}
+        data = {
+            "episodes": n,
+            "scenarios": list(scenarios),
+            "fingerprint": fingerprint,
+            "wall_seconds": wall,
+            "records": rows_out,
+        }
         tmp = path.with_suffix(".tmp")
         tmp.write_text(json.dumps(data) + "\n", encoding="utf-8")
         tmp.replace(path)
@@ -239,19 +281,20 @@ def accuracy(
 
 
 def cached_accuracy(
-    scenarios: Sequence[str], episodes: int, workers: int, runs: Path
+    scenarios: Sequence[str], episodes: int, workers: int, runs: Path, fingerprint: str = ""
 ) -> dict[str, dict[str, dict[str, float]]]:
     """`accuracy`, kept in ``runs`` beside the rows (same scenarios and episodes: read, not re-run)."""
     path = runs / "accuracy.json"
     if path.exists():
         stored = json.loads(path.read_text(encoding="utf-8"))
-        if stored["scenarios"] == list(scenarios) and stored["episodes"] == episodes:
+        same = stored.get("fingerprint") == fingerprint and stored["scenarios"] == list(scenarios)
+        if same and stored["episodes"] == episodes:
             return stored["accuracy"]
     print("open-loop accuracy ...", file=sys.stderr)
     acc = accuracy(scenarios, episodes, workers)
     runs.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
-    data = {"scenarios": list(scenarios), "episodes": episodes, "accuracy": acc}
+    data = {"scenarios": list(scenarios), "episodes": episodes, "fingerprint": fingerprint, "accuracy": acc}
     tmp.write_text(json.dumps(data) + "\n", encoding="utf-8")
     tmp.replace(path)
     return acc
@@ -288,6 +331,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--out", type=Path, default=Path("value_v2.json"), help="the JSON written")
     parser.add_argument(
+        "--figure", type=Path, default=Path("docs/value_of_prediction_curve.png"), help="the curve's PNG"
+    )
+    parser.add_argument(
         "--scenarios", nargs="+", default=None, help="scenarios (default: every built-in one)"
     )
     args = parser.parse_args(argv)
@@ -298,11 +344,16 @@ def main(argv: list[str] | None = None) -> int:
     episodes.update({r: args.path_episodes for r in rows if r[1] in PATH_ROWS})
     episodes.update({r: args.path_sweep_episodes for r in rows if r[1].startswith("oracle-noise")})
     start = time.perf_counter()
-    records = run_rows(rows, scenarios, episodes, args.runs, args.workers)
-    acc = cached_accuracy(scenarios, args.accuracy_episodes, args.workers, args.runs)
+    fingerprint = value_fingerprint()
+    records = run_rows(rows, scenarios, episodes, args.runs, args.workers, fingerprint)
+    acc = cached_accuracy(scenarios, args.accuracy_episodes, args.workers, args.runs, fingerprint)
     settings = {
-        "command": "python -m studies.value_of_prediction "
-        + " ".join(argv if argv is not None else sys.argv[1:]),
+        "command": (
+            f"python -m studies.value_of_prediction --episodes {args.episodes} --flip-episodes"
+            f" {args.flip_episodes} --path-episodes {args.path_episodes} --path-sweep-episodes"
+            f" {args.path_sweep_episodes} --accuracy-episodes {args.accuracy_episodes}"
+        ),
+        "workers": args.workers,
         "policy": POLICY,
         "scenarios": scenarios,
         "episodes": args.episodes,
@@ -316,6 +367,9 @@ def main(argv: list[str] | None = None) -> int:
     }
     data = analyse(records, acc, settings)
     data["wall_seconds"] = round(time.perf_counter() - start, 1)
+    data["rows_wall_seconds"] = round(
+        sum(json.loads(_row_file(args.runs, *r).read_text(encoding="utf-8"))["wall_seconds"] for r in rows), 1
+    )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n", encoding="utf-8")
     write_bytes_atomic(args.figure, plot_curve(data))
