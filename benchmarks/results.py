@@ -310,6 +310,43 @@ def _render_predictor_speed(data: dict[str, Any]) -> str:
     )
 
 
+def _measure_first_result() -> dict[str, Any]:
+    """`python benchmarks/first_result.py` (defaults: 3 warm and 1 cold smoke run, the default table)."""
+    start = time.perf_counter()
+    proc = subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "first_result.py")],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=REPO,
+    )
+    if proc.returncode != 0:
+        raise RuntimeError(f"benchmarks/first_result.py failed ({proc.returncode}): {proc.stderr[-2000:]}")
+    return {
+        "command": "python benchmarks/first_result.py",
+        "output": proc.stdout,
+        "wall_seconds": round(time.perf_counter() - start, 1),
+    }
+
+
+def _render_first_result(data: dict[str, Any]) -> str:
+    return (
+        f"Measured with `{data['command']}` (defaults) on commit `{data['commit'][:12]}`, 2 cores,"
+        f" {data['wall_seconds']:.0f} s in all; wall times depend on the machine and its load; rendered from"
+        " `benchmarks/results/first_result.json` by `python -m benchmarks.results`.\n\n"
+        f"```\n{data['output'].rstrip()}\n```"
+    )
+
+
+def _render_first_result_summary(data: dict[str, Any]) -> str:
+    line = next((x.strip() for x in data["output"].splitlines() if x.strip().startswith("this tree")), "")
+    return (
+        f"Measured by `{data['command']}` on commit `{data['commit'][:12]}` (2 cores; rendered from"
+        f" `benchmarks/results/first_result.json`, details in [docs/benchmarks.md](docs/benchmarks.md)):\n\n"
+        f"```\n{line}\n```"
+    )
+
+
 def _predictors_fingerprint() -> str:
     from studies.predictor_tables import fingerprint
 
@@ -440,6 +477,23 @@ ENTRIES: dict[str, Entry] = {
             REPO / "README.md",
             fingerprint=_value_fingerprint,
             data="value_of_prediction",
+        ),
+        Entry(
+            "first_result",
+            "slow",
+            _measure_first_result,
+            _render_first_result,
+            REPO / "docs" / "benchmarks.md",
+            fingerprint=learned_fingerprint,
+        ),
+        Entry(
+            "first_result_summary",
+            "slow",
+            _measure_first_result,
+            _render_first_result_summary,
+            REPO / "README.md",
+            fingerprint=learned_fingerprint,
+            data="first_result",
         ),
         Entry(
             "sim_transfer",
