@@ -529,7 +529,8 @@ def plot_curve(data: dict[str, Any]) -> bytes:
         ax.axhline(0.0, color="black", lw=0.6)
         ax.set_xlabel(xlabel)
         ax.set_ylabel(ylabel)
-        ax.legend(fontsize=7, loc="best")
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7, loc="best")
     fig.suptitle("Accuracy to value: paired differences to no prediction, 95 % intervals")
     fig.tight_layout()
     buf = io.BytesIO()
