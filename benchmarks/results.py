@@ -282,23 +282,28 @@ def _render_predictor_checkpoints(data: dict[str, Any]) -> str:
     return render_checkpoints(data)
 
 
-def _measure_predictor_speed() -> dict[str, Any]:
-    """`python benchmarks/predictors.py` (defaults): its printed report of sizes and CPU times."""
+def _script_report(script: str) -> dict[str, Any]:
+    """Run ``python benchmarks/SCRIPT`` with its defaults and keep its printed report and wall time."""
     start = time.perf_counter()
     proc = subprocess.run(
-        [sys.executable, str(REPO / "benchmarks" / "predictors.py")],
+        [sys.executable, str(REPO / "benchmarks" / script)],
         capture_output=True,
         text=True,
         check=False,
         cwd=REPO,
     )
     if proc.returncode != 0:
-        raise RuntimeError(f"benchmarks/predictors.py failed ({proc.returncode}): {proc.stderr[-2000:]}")
+        raise RuntimeError(f"benchmarks/{script} failed ({proc.returncode}): {proc.stderr[-2000:]}")
     return {
-        "command": "python benchmarks/predictors.py",
+        "command": f"python benchmarks/{script}",
         "output": proc.stdout,
         "wall_seconds": round(time.perf_counter() - start, 1),
     }
+
+
+def _measure_predictor_speed() -> dict[str, Any]:
+    """`python benchmarks/predictors.py` (defaults): its printed report of sizes and CPU times."""
+    return _script_report("predictors.py")
 
 
 def _render_predictor_speed(data: dict[str, Any]) -> str:
@@ -312,21 +317,7 @@ def _render_predictor_speed(data: dict[str, Any]) -> str:
 
 def _measure_first_result() -> dict[str, Any]:
     """`python benchmarks/first_result.py` (defaults: 3 warm and 1 cold smoke run, the default table)."""
-    start = time.perf_counter()
-    proc = subprocess.run(
-        [sys.executable, str(REPO / "benchmarks" / "first_result.py")],
-        capture_output=True,
-        text=True,
-        check=False,
-        cwd=REPO,
-    )
-    if proc.returncode != 0:
-        raise RuntimeError(f"benchmarks/first_result.py failed ({proc.returncode}): {proc.stderr[-2000:]}")
-    return {
-        "command": "python benchmarks/first_result.py",
-        "output": proc.stdout,
-        "wall_seconds": round(time.perf_counter() - start, 1),
-    }
+    return _script_report("first_result.py")
 
 
 def _render_first_result(data: dict[str, Any]) -> str:
