@@ -152,7 +152,12 @@ def run_rows(
 
 def _intent_samples(scenario: str, seed: int, intention: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(predicted intent, true intent, track) of every decided, present pedestrian-step of one episode."""
-    from crossing_env.observation import CROSSING_INTENT_KEY, PEDESTRIAN_TRACKS_KEY, PEDESTRIANS_KEY
+    from crossing_env.observation import (
+        CROSSING_INTENT_KEY,
+        PEDESTRIAN_TRACKS_KEY,
+        PEDESTRIANS_KEY,
+        PedestrianColumn,
+    )
     from predictors.oracle import OracleIntention
     from rollout import build_policy, make_env
 
@@ -165,7 +170,7 @@ def _intent_samples(scenario: str, seed: int, intention: str) -> tuple[np.ndarra
     done = False
     while not done:
         t = truth.observation(obs)[CROSSING_INTENT_KEY]
-        ok = (obs[PEDESTRIANS_KEY][:, 0] > 0.5) & ((t == 0.0) | (t == 1.0))
+        ok = (obs[PEDESTRIANS_KEY][:, PedestrianColumn.PRESENCE] > 0.5) & ((t == 0.0) | (t == 1.0))
         pred.append(obs[CROSSING_INTENT_KEY][ok])
         true.append(t[ok])
         track.append(obs[PEDESTRIAN_TRACKS_KEY][ok])
@@ -177,7 +182,12 @@ def _intent_samples(scenario: str, seed: int, intention: str) -> tuple[np.ndarra
 
 def _path_samples(scenario: str, seed: int, predictor: str) -> tuple[np.ndarray, np.ndarray]:
     """Paths (N, 12, 2) and (track, step) (N, 2) of every present pedestrian-step; `constant_speed` car."""
-    from crossing_env.observation import PEDESTRIAN_TRACKS_KEY, PEDESTRIANS_KEY, PREDICTED_PATHS_KEY
+    from crossing_env.observation import (
+        PEDESTRIAN_TRACKS_KEY,
+        PEDESTRIANS_KEY,
+        PREDICTED_PATHS_KEY,
+        PedestrianColumn,
+    )
     from predictors.oracle import OracleTrajectory
     from rollout import build_policy, make_env
 
@@ -192,7 +202,7 @@ def _path_samples(scenario: str, seed: int, predictor: str) -> tuple[np.ndarray,
     paths, tracks, steps = [], [], []
     done, step = False, 0
     while not done:
-        ok = obs[PEDESTRIANS_KEY][:, 0] > 0.5
+        ok = obs[PEDESTRIANS_KEY][:, PedestrianColumn.PRESENCE] > 0.5
         paths.append(obs[PREDICTED_PATHS_KEY][ok])
         tracks.append(obs[PEDESTRIAN_TRACKS_KEY][ok])
         steps.append(np.full(int(ok.sum()), step))
