@@ -151,25 +151,19 @@ def _render_discrimination(data: dict[str, Any]) -> str:
     return render_body(data)
 
 
+def _study_json(module: str, runs: str) -> dict[str, Any]:
+    """Run ``python -m MODULE --runs runs/RUNS --out F`` (a study that keeps its runs and writes its JSON)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "result.json"
+        cmd = [sys.executable, "-m", module, "--runs", str(REPO / "runs" / runs), "--out", str(out)]
+        subprocess.run(cmd, check=True, cwd=REPO)
+        return json.loads(out.read_text(encoding="utf-8"))
+
+
 def _measure_safe_rl() -> dict[str, Any]:
     """`studies/safe_rl.py`: trains what is missing in ``runs/safe_rl`` (about 1 h per learner on 2 cores),
     then the curves, steps to safety, selection and the paired evaluation against `yielding`."""
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "safe_rl.json"
-        subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "studies.safe_rl",
-                "--runs",
-                str(REPO / "runs" / "safe_rl"),
-                "--out",
-                str(out),
-            ],
-            check=True,
-            cwd=REPO,
-        )
-        return json.loads(out.read_text(encoding="utf-8"))
+    return _study_json("studies.safe_rl", "safe_rl")
 
 
 def _render_safe_rl(data: dict[str, Any]) -> str:
@@ -240,15 +234,7 @@ def _render_sim_transfer(data: dict[str, Any]) -> str:
 def _measure_value_of_prediction() -> dict[str, Any]:
     """`python -m studies.value_of_prediction` (defaults): runs the rows missing from ``runs/value_v2``
     (about 1.5 h on 2 cores from nothing), then the accuracy and the analysis."""
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "value_of_prediction.json"
-        subprocess.run(
-            [sys.executable, "-m", "studies.value_of_prediction", "--runs", str(REPO / "runs" / "value_v2"),
-             "--out", str(out)],
-            check=True,
-            cwd=REPO,
-        )  # fmt: skip
-        return json.loads(out.read_text(encoding="utf-8"))
+    return _study_json("studies.value_of_prediction", "value_v2")
 
 
 def _render_value_of_prediction(data: dict[str, Any]) -> str:
@@ -306,13 +292,20 @@ def _measure_predictor_speed() -> dict[str, Any]:
     return _script_report("predictors.py")
 
 
-def _render_predictor_speed(data: dict[str, Any]) -> str:
+def _script_block(data: dict[str, Any], name: str, timing: str) -> str:
+    """A script's report as a code block, under the line that says how and where it was measured."""
     return (
-        f"Measured with `{data['command']}` (defaults) on commit `{data['commit'][:12]}`,"
-        f" {data['wall_seconds']:.0f} s; CPU times depend on the machine and its load, the ratios much less;"
-        " rendered from `benchmarks/results/predictor_speed.json` by `python -m benchmarks.results`.\n\n"
+        f"Measured with `{data['command']}` (defaults) on commit `{data['commit'][:12]}`,{timing}"
+        f" rendered from `benchmarks/results/{name}.json` by `python -m benchmarks.results`.\n\n"
         f"```\n{data['output'].rstrip()}\n```"
     )
+
+
+def _render_predictor_speed(data: dict[str, Any]) -> str:
+    timing = (
+        f" {data['wall_seconds']:.0f} s; CPU times depend on the machine and its load, the ratios much less;"
+    )
+    return _script_block(data, "predictor_speed", timing)
 
 
 def _measure_first_result() -> dict[str, Any]:
@@ -321,12 +314,8 @@ def _measure_first_result() -> dict[str, Any]:
 
 
 def _render_first_result(data: dict[str, Any]) -> str:
-    return (
-        f"Measured with `{data['command']}` (defaults) on commit `{data['commit'][:12]}`, 2 cores,"
-        f" {data['wall_seconds']:.0f} s in all; wall times depend on the machine and its load; rendered from"
-        " `benchmarks/results/first_result.json` by `python -m benchmarks.results`.\n\n"
-        f"```\n{data['output'].rstrip()}\n```"
-    )
+    timing = f" 2 cores, {data['wall_seconds']:.0f} s in all; wall times depend on the machine and its load;"
+    return _script_block(data, "first_result", timing)
 
 
 def _render_first_result_summary(data: dict[str, Any]) -> str:

@@ -327,8 +327,15 @@ def plot_png(table: Sequence[dict[str, Any]]) -> bytes:
     ax.set_xlabel("Δ mean delay vs no prediction (s, censored), paired bootstrap 95 % CI")
     ax.set_title("Value of prediction (red: more collisions or compliance < 0.99)")
     fig.tight_layout()
+    return figure_png(fig)
+
+
+def figure_png(fig: Any, dpi: int = 110) -> bytes:
+    """The figure as PNG bytes; the figure is closed (matplotlib keeps open figures alive)."""
+    import matplotlib.pyplot as plt
+
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110)
+    fig.savefig(buf, format="png", dpi=dpi)
     plt.close(fig)
     return buf.getvalue()
 

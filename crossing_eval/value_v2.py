@@ -20,14 +20,13 @@ separation; the 5th percentiles are taken over those that did.
 
 from __future__ import annotations
 
-import io
 import math
 from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
 
-from crossing_eval.prediction_value import _free_flow_times, _interval, _mean, _p5, _ratio
+from crossing_eval.prediction_value import _free_flow_times, _interval, _mean, _p5, _ratio, figure_png
 
 __all__ = ["METRICS", "analyse", "plot_curve", "render_body", "render_summary"]
 
@@ -165,55 +164,41 @@ def analyse(
     """The v2 data: rows with metrics, compliance per scenario, the rows without the dominant scenarios."""
     scenarios = sorted({r["scenario"] for recs in records.values() for r in recs})
     free_flow = _free_flow_times(scenarios)
-    ref_key = ("none", "none")
-    ref_all = records[ref_key]
+    ref_all = records[("none", "none")]
+
+    def metrics(key: tuple[str, str], keys: set[tuple[str, int]]) -> dict[str, Any]:
+        """Row `key` on the episodes `keys`, paired with the reference and its oracle on the same ones."""
+        okey = _oracle_of(*key)
+        mine = _columns(_select(records[key], keys), free_flow)
+        ref = _columns(_select(ref_all, keys), free_flow)
+        oracle = None if okey not in records else _columns(_select(records[okey], keys), free_flow)
+        if len(ref["delay"]) != len(keys) or (oracle is not None and len(oracle["delay"]) != len(keys)):
+            raise ValueError(f"row {key[0]} / {key[1]} is not paired with the reference and its oracle")
+        return _compare(mine, ref, oracle, seed, n_resamples)
+
     rows = []
     for (intention, predictor), recs in records.items():
-        keys = {(r["scenario"], r["episode"]) for r in recs}
         okey = _oracle_of(intention, predictor)
-        mine = _columns(_select(recs, keys), free_flow)
-        ref = _columns(_select(ref_all, keys), free_flow)
-        oracle = (
-            None if okey is None or okey not in records else _columns(_select(records[okey], keys), free_flow)
-        )
-        if len(ref["delay"]) != len(mine["delay"]) or (
-            oracle is not None and len(oracle["delay"]) != len(keys)
-        ):
-            raise ValueError(f"row {intention} / {predictor} is not paired with the reference and its oracle")
         rows.append(
             {
                 "intention": intention,
                 "predictor": predictor,
                 "kind": kind_of(intention, predictor),
-                "episodes": len(keys),
+                "episodes": len(recs),
                 "oracle": "" if okey is None else f"{okey[0]} / {okey[1]}",
                 "accuracy": _accuracy_of(accuracy, intention, predictor),
-                "metrics": _compare(mine, ref, oracle, seed, n_resamples),
+                "metrics": metrics((intention, predictor), {(r["scenario"], r["episode"]) for r in recs}),
                 "compliance_by_scenario": _by_scenario(recs),
             }
         )
     share = _obligation_share(ref_all)
     dominant = sorted(sc for sc, s in share.items() if s > DOMINANT_SHARE)
-    kept = {(r["scenario"], r["episode"]) for r in ref_all if r["scenario"] not in dominant}
     without = []
     for (intention, predictor), recs in records.items():
-        keys = {(r["scenario"], r["episode"]) for r in recs} & kept
-        if not keys or kind_of(intention, predictor) == "degraded":
-            continue
-        okey = _oracle_of(intention, predictor)
-        mine = _columns(_select(recs, keys), free_flow)
-        ref = _columns(_select(ref_all, keys), free_flow)
-        oracle = (
-            None if okey is None or okey not in records else _columns(_select(records[okey], keys), free_flow)
-        )
-        without.append(
-            {
-                "intention": intention,
-                "predictor": predictor,
-                "episodes": len(keys),
-                "metrics": _compare(mine, ref, oracle, seed, n_resamples),
-            }
-        )
+        keys = {(r["scenario"], r["episode"]) for r in recs if r["scenario"] not in dominant}
+        if keys and kind_of(intention, predictor) != "degraded":
+            row = {"intention": intention, "predictor": predictor, "episodes": len(keys)}
+            without.append(row | {"metrics": metrics((intention, predictor), keys)})
     return {
         "settings": settings,
         "rows": rows,
@@ -533,7 +518,4 @@ def plot_curve(data: dict[str, Any]) -> bytes:
             ax.legend(fontsize=7, loc="best")
     fig.suptitle("Accuracy to value: paired differences to no prediction, 95 % intervals")
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=100)
-    plt.close(fig)
-    return buf.getvalue()
+    return figure_png(fig, dpi=100)

@@ -155,11 +155,15 @@ class NoisyPaths(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         self._gen: np.random.Generator | None = None
         self._key = 0
         self._step = 0
+        self._period = -1
+        self._held: dict[int, np.ndarray] = {}
+        """Each present track's error of the current hold period."""
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
         """Reset the env, the step count and this episode's key."""
         self._key, self._gen = _episode_key(seed, self._gen, _NOISE_SALT)
         self._step = -1  # the reset's observation is step 0
+        self._period, self._held = -1, {}
         return super().reset(seed=seed, options=options)
 
     def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -170,15 +174,17 @@ class NoisyPaths(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
             return observation
         tracks = observation[PEDESTRIAN_TRACKS_KEY]
         period = self._step // self.hold_steps
+        if period != self._period:  # a track's error is drawn once per hold period, not once per step
+            self._period, self._held = period, {}
         offsets = np.zeros((observation[PREDICTED_PATHS_KEY].shape[0], 1, 2), np.float32)
         for k in present:
-            offsets[k, 0] = self.sigma * _path_offset(self._key, int(tracks[k]), period)
-        error = offsets * self._ramp[None]  # (K, T, 2)
+            track = int(tracks[k])
+            if track not in self._held:
+                self._held[track] = self.sigma * _path_offset(self._key, track, period)
+            offsets[k, 0] = self._held[track]
+        error = offsets * self._ramp[None]  # (K, T, 2); zero in absent slots
         result = dict(observation)
         for key in (PREDICTED_PATHS_KEY, PLAN_PATHS_KEY):
             if key in observation:
-                noisy = observation[key] + np.where(
-                    observation[PEDESTRIANS_KEY][:, PedestrianColumn.PRESENCE, None, None] > 0.5, error, 0.0
-                )
-                result[key] = np.clip(noisy, -self.bound, self.bound).astype(np.float32)
+                result[key] = np.clip(observation[key] + error, -self.bound, self.bound).astype(np.float32)
         return result
