@@ -134,8 +134,7 @@ class YieldingShield:
         near, far = self.rule._crossing_span(view)
         margin = cfg.kerb_margin
         dx = np.maximum(np.maximum(near - margin - view.px, view.px - far - margin), 0.0)
-        kerb_gap = np.minimum(np.abs(view.py - cfg.road_right), np.abs(view.py - cfg.road_left))
-        dy = np.maximum(kerb_gap - cfg.kerb_distance, 0.0)
+        dy = np.maximum(self.rule._kerb_gap(view) - cfg.kerb_distance, 0.0)
         walk = np.maximum(np.hypot(view.vx, view.vy), cfg.assumed_walking_speed)
         t_ped = np.hypot(dx, dy) / walk
         t_car = travel_time(s, view.speed, cfg.go_acceleration, max(cfg.speed_limit, EPS))

@@ -117,6 +117,11 @@ class YieldingPolicy:
         self.duty: LegalDuty | None = None
         """The legal-yield state of the last call (`LegalDuty`), for `agents.shield.YieldingShield`."""
 
+    def _kerb_gap(self, view: View) -> np.ndarray:
+        """(B, K) each pedestrian's lateral distance (m) to the nearer kerb."""
+        cfg = self.config
+        return np.minimum(np.abs(view.py - cfg.road_right), np.abs(view.py - cfg.road_left))
+
     def _settled(self, view: View) -> np.ndarray:
         """Update the track memory; return (B, K): pedestrians not waiting to cross by what they did.
 
@@ -270,7 +275,7 @@ class YieldingPolicy:
         centre = 0.5 * (cfg.half_right + cfg.half_left)
         toward = (centre - view.py) * view.vy > 0.0
         on_xing = view.on_crossing & (in_half | toward)
-        kerb_gap = np.minimum(np.abs(view.py - cfg.road_right), np.abs(view.py - cfg.road_left))
+        kerb_gap = self._kerb_gap(view)
         towards_road = self._towards_road(view)
         lingering = view.present & (towards_road > -cfg.leaving_speed) & (kerb_gap <= cfg.kerb_distance)
         settled = self._settled(view)
