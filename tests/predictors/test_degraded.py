@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import gymnasium as gym
@@ -122,3 +123,21 @@ def test_the_accuracy_sweep_is_paired_on_seeds_and_resumes(tmp_path: Path) -> No
     again = run_rows(rows, ["ncap_cpna"], episodes, tmp_path, workers=1)
     assert again == first
     assert {p.name: p.stat().st_mtime_ns for p in tmp_path.iterdir()} == stamps
+
+
+def test_a_row_whose_fingerprint_changed_is_re_run_alone(tmp_path: Path) -> None:
+    """Rows are stamped one by one: a change to one predictor re-runs its row and keeps the others."""
+    rows = [("none", "none"), ("oracle-flip=0.3", "none")]
+    episodes = dict.fromkeys(rows, 1)
+    run_rows(rows, ["ncap_cpna"], episodes, tmp_path, workers=1, fingerprint=lambda i, p: "old")
+    stamps = {p.name: p.stat().st_mtime_ns for p in tmp_path.iterdir()}
+    changed = "oracle-flip_0.3__none.json"
+
+    def fingerprint(intention: str, predictor: str) -> str:
+        return "new" if intention.startswith("oracle-flip") else "old"
+
+    run_rows(rows, ["ncap_cpna"], episodes, tmp_path, workers=1, fingerprint=fingerprint)
+    after = {p.name: p.stat().st_mtime_ns for p in tmp_path.iterdir()}
+    assert after["none__none.json"] == stamps["none__none.json"]
+    assert after[changed] != stamps[changed]
+    assert json.loads((tmp_path / changed).read_text())["fingerprint"] == "new"
