@@ -3,19 +3,19 @@
 `YieldingPolicy` only ever adds caution from a prediction, so no prediction can make it faster. This
 variant lets a confident prediction *release* it, within the law, and trusts predicted paths:
 
-- **Release.** A pedestrian by the kerb whose ``crossing_intent`` (the predicted probability of being on
-  the road within 10 s: the intent to cross here) is at most the predictor's risk bound is not yielded
-  to as "waiting to cross", unless the legal duty is visible in the observation: the pedestrian is on
-  the zebra (or the road), or is stepping towards the road (speed towards it above `stepping_speed`
-  within `kerb_distance` of the kerb). The duty of UK rule 195 / StVO §26 is to people who
-  (recognisably) want to cross; a bystander at a bus stop is not one. The bound is the predictor's own
-  ``crossing_intent_bound`` when it publishes one (the learned, QLB and classical wrappers do: chosen on
-  their training seeds so that at most 1 % of the people who do cross are ever released while they
-  stand at the kerb), else `release_threshold` (the oracle, whose intent is 0, 0.5 or 1). The
-  near-term ``crossing_intention`` never releases: it estimates "on the road ahead within 2 s", which
-  is low for a pedestrian who waits *because* the car is coming (measured: median 0.09 classical / 0.02
-  QLB for waiting pedestrians who do cross, against 0.70 / 0.73 for pedestrians standing at the kerb
-  who do not), and releasing on it broke 12 % of yield obligations in a first grid run.
+- **Release.** A pedestrian by the kerb whose ``crossing_intent`` (the predicted probability of being on the
+  road within 10 s: the intent to cross here) is at most the predictor's risk bound is not yielded to as
+  "waiting to cross", unless the legal duty is visible in the observation: the pedestrian is on the zebra
+  (or the road), or is stepping towards the road (speed towards it above `stepping_speed` within
+  `kerb_distance` of the kerb). The duty of UK rule 195 / StVO §26 is to people who (recognisably) want to
+  cross; a bystander at a bus stop is not one. The bound is the predictor's own ``crossing_intent_bound``
+  when it publishes one (the learned, QLB and classical wrappers do: chosen by `studies.release_bounds`, the
+  largest bound at which this policy keeps yield compliance ≥ 0.99 with no collision on selection episodes
+  never evaluated), else `release_threshold` (the oracle, whose intent is 0, 0.5 or 1). The near-term
+  ``crossing_intention`` never releases: it estimates "on the road ahead within 2 s", which is low for a
+  pedestrian who waits *because* the car is coming (measured: median 0.09 classical / 0.02 QLB for waiting
+  pedestrians who do cross, against 0.70 / 0.73 for pedestrians standing at the kerb who do not), and
+  releasing on it broke 12 % of yield obligations in a first grid run.
 - **Caution where it is due.** A pedestrian the near-term estimate expects to cross is treated as
   waiting only within `anticipation_kerb_distance` of the kerb: standing at it, not walking up the
   sidewalk; and not at a signalised crossing that shows the car green, where people wait for their own

@@ -241,21 +241,46 @@ def render_body(data: dict[str, Any]) -> str:
             cells = " | ".join(f"{row['models'][m]['brier'][0]:.4f}" for m in MODELS)
             lines.append(f"| {world} | {names[target]} | {row['samples']} / {row['positives']} | {cells} |")
     rel = data["release"]
+    closed = rel.get("closed_loop")
+    if closed is None:
+        how = "chosen on the training seeds (open loop, below)"
+    else:
+        how = (
+            f"chosen in closed loop by `{closed['command']}`: `{closed['policy']}` on every built-in"
+            f" scenario, {closed['episodes_per_scenario']} selection episodes each (base seed"
+            f" {closed['seed']}, never evaluated), the bound raised in steps of 0.05 until a step has a"
+            f" collision or yield compliance below {closed['min_compliance']:.2f}; the kept bound is the last"
+            " step before it"
+        )
     lines += [
         "",
-        f"**Release risk bounds** (chosen on the training seeds: the largest threshold at which at most"
-        f" {rel['max_crossers_released']:.0%} of the {rel['crossing_pedestrians']} pedestrians who cross"
-        f" within 10 s are ever released while standing by the kerb at a zebra ahead; {rel['candidates']}"
-        " candidate samples)",
+        f"**Release risk bounds**: {how}. The open-loop bound is the training's proxy: the largest"
+        f" threshold at which at most {rel['max_crossers_released']:.0%} of the {rel['crossing_pedestrians']}"
+        " pedestrians who cross within 10 s are *ever* released while standing by the kerb at a zebra ahead"
+        f" ({rel['candidates']} candidate samples; the release shares are at that bound).",
         "",
-        "| model | threshold | crossers released | non-crosser samples released |",
-        "|---|---|---|---|",
+        "| model | release bound | open-loop bound | crossers released | non-crosser samples released |",
+        "|---|---|---|---|---|",
     ]
     for model, r in rel["models"].items():
         lines.append(
-            f"| {model} | {r['threshold']:.3f} | {r['crossers_released']:.3f}"
-            f" | {r['non_crosser_samples_released']:.3f} |"
+            f"| {model} | {r['threshold']:.3f} | {r.get('open_loop_threshold', r['threshold']):.3f}"
+            f" | {r['crossers_released']:.3f} | {r['non_crosser_samples_released']:.3f} |"
         )
+    if closed is not None:
+        lines += [
+            "",
+            "Closed-loop sweep (every step run; the last one of each model failed, or ended the grid):",
+            "",
+            "| model | bound | episodes | collisions | compliant / obligations | mean episode duration s |",
+            "|---|---|---|---|---|---|",
+        ]
+        for model, points in closed["sweeps"].items():
+            lines += [
+                f"| {model} | {pt['bound']:.2f} | {pt['episodes']} | {pt['collisions']} |"
+                f" {pt['compliant']} / {pt['obligations']} | {pt['mean_duration']:.2f} |"
+                for pt in points
+            ]
     return "\n".join(lines)
 
 

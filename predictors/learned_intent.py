@@ -10,7 +10,8 @@ is relative to the kerb and the crossing, how it moves, whether its 3.2 s positi
 
 The heads are fitted by ``python -m studies.train_learned_intent`` on simulated ground truth from
 training seeds disjoint from every evaluation seed, and shipped as JSON (`learned_intent_weights`) with
-the release risk bound chosen there, which the wrapper publishes as ``crossing_intent_bound`` (1,). Fitted
+the release risk bound that ``python -m studies.release_bounds`` chooses by driving on selection seeds,
+which the wrapper publishes as ``crossing_intent_bound`` (1,). Fitted
 by maximum likelihood, the probabilities are calibrated on the training distribution;
 `benchmarks/intention.py` measures calibration (ECE) on the evaluation seeds.
 """

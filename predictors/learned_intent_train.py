@@ -15,12 +15,14 @@ Fitted, all deterministically (L-BFGS from zeros on fixed data; no random draws)
   road ahead of the ego's rear within 1, 2, 4 s, and on the road anywhere within `INTENT_HORIZON` (intent);
 - Platt coefficients for the raw QLB and classical intent (their model over `INTENT_HORIZON`);
 - the rule baseline's rates (positive rate off the road, at the kerb facing the road, on the road);
-- the **release risk bound** of each model (learned, QLB, classical): the largest threshold on a grid such
-  that, on the training seeds, at most `RELEASE_MISS` of the pedestrians who do cross within
-  `INTENT_HORIZON` are ever released while they stand by the kerb at a zebra ahead of the car (the
-  ``min`` of the model's calibrated ``crossing_intent`` over their candidate samples at or below it): the
-  share of legal waits the release could break. Each wrapper publishes its bound in the observation
-  (``crossing_intent_bound``) and `agents.predictive` releases only below it.
+- the **open-loop release bound** of each model (learned, QLB, classical): the largest threshold on a grid
+  such that, on the training seeds, at most `RELEASE_MISS` of the pedestrians who do cross within
+  `INTENT_HORIZON` are ever released while they stand by the kerb at a zebra ahead of the car (the ``min`` of
+  the model's calibrated ``crossing_intent`` over their candidate samples at or below it). It is written as
+  each model's ``threshold``; ``python -m studies.release_bounds`` then chooses the shipped bound in closed
+  loop (compliance kept at 0.99 by driving on selection episodes) and keeps this one as
+  ``open_loop_threshold``. Each wrapper publishes its bound in the observation (``crossing_intent_bound``)
+  and `agents.predictive` releases only below it.
 
 Writes ``predictors/weights/learned_intent.json`` and its sha256 manifest.
 """

@@ -107,7 +107,7 @@ def shipped_weights() -> dict[str, Any]:
 
 
 def release_threshold(model: str) -> float:
-    """The release risk bound of `model` (learned, qlb, classical), chosen on the training seeds."""
+    """The release risk bound of `model` (learned, qlb, classical), chosen by driving on selection seeds."""
     return float(shipped_weights()["release"]["models"][model]["threshold"])
 
 

@@ -1,0 +1,199 @@
+"""Choose each intent predictor's release risk bound in closed loop, on selection episodes.
+
+    python -m studies.release_bounds   # after `python -m studies.train_learned_intent`
+
+Why closed loop: the training's open-loop bound (the largest threshold at which at most 1 % of the people
+who cross are *ever*, at a single step, released while they stand at the kerb) is a proxy that the issue's
+own criterion does not need, and it is far stricter: one low sample anywhere in a crosser's wait counts, while
+the car releases per step and yields again to anyone who steps towards the road. The criterion asked for is
+the driving one: a bound such that yield compliance stays at or above `MIN_COMPLIANCE`.
+
+How: for each model (learned, QLB, classical), `predictive_yielding` drives every built-in scenario under
+that intention wrapper with its published ``crossing_intent_bound`` replaced by each bound of `GRID`, in
+ascending order, on `EPISODES` episodes per scenario seeded from `SELECTION_SEED` (``crossing-eval`` and the
+value study use 2024, so they never meet these episodes). A bound passes with no collision and yield
+compliance ≥ `MIN_COMPLIANCE` over the episodes; the kept bound is the last that passes before the first that
+fails (compliance falls as the bound rises, so the sweep stops there), or the open-loop bound if the first
+grid value fails. The chosen thresholds, the open-loop ones and the whole sweep are written into the release
+section of ``predictors/weights/learned_intent.json`` (and its sha256 manifest); nothing else in the file
+changes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing
+import sys
+import time
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+MODELS: tuple[str, ...] = ("learned", "qlb", "classical")
+"""Intent predictors whose bound is chosen (the intention wrappers of the same names)."""
+GRID: tuple[float, ...] = tuple(round(0.05 * i, 2) for i in range(1, 17))
+"""Candidate bounds, ascending: 0.05 .. 0.80."""
+EPISODES = 10
+"""Selection episodes per scenario and bound."""
+SELECTION_SEED = 777
+"""Base seed of the selection episodes (``crossing-eval`` defaults to 2024)."""
+MIN_COMPLIANCE = 0.99
+"""Yield compliance a bound must keep on the selection episodes (the issue's target)."""
+POLICY = "predictive_yielding"
+"""The policy that reads the bound (`agents.predictive`)."""
+
+
+class FixedBound(gym.ObservationWrapper):
+    """Replaces the intent wrapper's published release bound by `bound` (the sweep's only change)."""
+
+    def __init__(self, env: gym.Env, bound: float) -> None:
+        super().__init__(env)
+        self.bound = float(bound)
+
+    def observation(self, observation: dict[str, Any]) -> dict[str, Any]:
+        """The observation with ``crossing_intent_bound`` set to `bound`."""
+        from predictors.learned_intent_weights import CROSSING_INTENT_BOUND_KEY
+
+        out = dict(observation)
+        out[CROSSING_INTENT_BOUND_KEY] = np.array([self.bound], dtype=np.float32)
+        return out
+
+
+_BUILT: dict[tuple[str, str], Any] = {}
+
+
+def _episode(job: tuple[str, str, float, int]) -> dict[str, Any]:
+    """One selection episode: (model, scenario, bound, episode index) → its scored result."""
+    from crossing_eval.tasks import episode_seed
+    from rollout import RolloutSpec, build, run_episode
+
+    model, scenario, bound, index = job
+    key = (model, scenario)
+    if key not in _BUILT:
+        _BUILT[key] = build(RolloutSpec(scenario=scenario, policy=POLICY, intention=model, predictor="none"))
+    run = _BUILT[key]
+    episode = run_episode(
+        FixedBound(run.env, bound), episode_seed(SELECTION_SEED, scenario, index), run.policy
+    )
+    r = episode.result
+    return {
+        "scenario": scenario,
+        "episode": index,
+        "collision": bool(r["collision"]),
+        "compliant": int(r["yield_compliant"]),
+        "obligations": int(r["yield_obligations"]),
+        "duration": float(r["duration"]),
+    }
+
+
+def summarise(bound: float, results: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """One grid point: episodes, collisions, compliance and mean episode duration."""
+    compliant = sum(r["compliant"] for r in results)
+    obligations = sum(r["obligations"] for r in results)
+    return {
+        "bound": bound,
+        "episodes": len(results),
+        "collisions": sum(r["collision"] for r in results),
+        "compliant": compliant,
+        "obligations": obligations,
+        "compliance": compliant / obligations if obligations else 1.0,
+        "mean_duration": float(np.mean([r["duration"] for r in results])),
+    }
+
+
+def passes(point: dict[str, Any], min_compliance: float = MIN_COMPLIANCE) -> bool:
+    """A bound passes with no collision and compliance at or above `min_compliance`."""
+    return point["collisions"] == 0 and point["compliance"] >= min_compliance
+
+
+def choose(points: Sequence[dict[str, Any]], fallback: float) -> float:
+    """The last passing bound before the first failing one (`points` ascending), else `fallback`."""
+    chosen = fallback
+    for point in points:
+        if not passes(point):
+            break
+        chosen = max(chosen, point["bound"])
+    return chosen
+
+
+def sweep(
+    model: str,
+    scenarios: Sequence[str],
+    episodes: int,
+    pool: ProcessPoolExecutor,
+    grid: Sequence[float] = GRID,
+) -> list[dict[str, Any]]:
+    """The grid points of `model`, ascending, up to and including the first that fails."""
+    points = []
+    for bound in grid:
+        jobs = [(model, sc, bound, i) for sc in scenarios for i in range(episodes)]
+        start = time.perf_counter()
+        point = summarise(bound, list(pool.map(_episode, jobs)))
+        points.append(point)
+        print(
+            f"{model} bound {bound:.2f}: {point['collisions']} collisions, compliance"
+            f" {point['compliant']}/{point['obligations']}, mean duration {point['mean_duration']:.2f} s"
+            f" ({time.perf_counter() - start:.0f} s)",
+            file=sys.stderr,
+        )
+        if not passes(point):
+            break
+    return points
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Sweep every model and write the chosen bounds into the shipped weights."""
+    from crossing_eval.runners import pool_start_method
+    from predictors.learned_intent_train import write_weights
+    from predictors.learned_intent_weights import WEIGHTS_PATH, read_weights
+    from scenarios import list_scenarios
+
+    parser = argparse.ArgumentParser(
+        prog="python -m studies.release_bounds",
+        description=__doc__.splitlines()[0],
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    parser.add_argument("--episodes", type=int, default=EPISODES, help="selection episodes per scenario")
+    parser.add_argument("--workers", type=int, default=2, help="worker processes")
+    parser.add_argument("--weights", type=Path, default=WEIGHTS_PATH, help="weights file to update")
+    args = parser.parse_args(argv)
+    if args.episodes < 1:
+        parser.error(f"--episodes must be >= 1, got {args.episodes}")
+    weights = read_weights(args.weights, args.weights.with_name("learned_intent.sha256.json"))
+    scenarios = sorted(list_scenarios())
+    start = time.perf_counter()
+    release = weights["release"]
+    closed: dict[str, Any] = {}
+    context = multiprocessing.get_context(pool_start_method())
+    with ProcessPoolExecutor(max_workers=args.workers, mp_context=context) as pool:
+        for model in MODELS:
+            entry = release["models"][model]
+            open_loop = float(entry.get("open_loop_threshold", entry["threshold"]))
+            points = sweep(model, scenarios, args.episodes, pool)
+            entry["open_loop_threshold"] = open_loop
+            entry["threshold"] = choose(points, open_loop)
+            closed[model] = points
+    release["closed_loop"] = {
+        "command": f"python -m studies.release_bounds --episodes {args.episodes}",
+        "policy": POLICY,
+        "seed": SELECTION_SEED,
+        "episodes_per_scenario": args.episodes,
+        "scenarios": scenarios,
+        "min_compliance": MIN_COMPLIANCE,
+        "grid": list(GRID),
+        "sweeps": closed,
+        "wall_seconds": round(time.perf_counter() - start, 1),
+    }
+    digest = write_weights(weights, args.weights)
+    chosen = {m: release["models"][m]["threshold"] for m in MODELS}
+    print(f"wrote {args.weights.name} (sha256 {digest[:12]}…); release bounds {json.dumps(chosen)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
