@@ -342,17 +342,19 @@ BENCHMARK_SCRIPTS: dict[str, tuple[str, tuple[str, ...], str]] = {
     "env_throughput": ("env_throughput.py", (), "speed"),
     "env_throughput_wrappers": ("env_throughput.py", ("--wrappers",), "speed"),
     "scaling": ("scaling.py", (), "speed"),
-    "eval_throughput": ("eval_throughput.py", ("--episodes", "1"), "speed"),
+    "eval_throughput": ("eval_throughput.py", ("--episodes", "1"), "workers"),
     "soak": ("soak.py", ("--scenario", "default"), "memory"),
     "world_health": ("world_health.py", (), "counts"),
     "oracle_cost": ("oracle_cost.py", ("--seeds", "2"), "speed"),
 }
 """Entry name → (script in ``benchmarks/``, its options as ``docs/benchmarks.md`` documents them, what it
-reports: speeds, memory or counts)."""
+reports: speeds against a peer, speeds by worker count, memory or counts)."""
 
 _SCRIPT_TIMING = {
     "speed": " 2 cores, {wall:.0f} s; speeds depend on the machine and its load, the ratios to the peer"
     " timed in the same run much less;",
+    "workers": " 2 cores, {wall:.0f} s; episodes/s depend on the machine and its load, and a second worker"
+    " helps only as far as a second core is free;",
     "memory": " {wall:.0f} s; resident memory depends on the platform's libraries;",
     "counts": " {wall:.0f} s;",
 }

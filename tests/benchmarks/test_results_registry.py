@@ -72,7 +72,7 @@ def test_benchmarks_page_lists_each_script_with_its_registered_command(name: str
         for line in results.ENTRIES[name].document.read_text(encoding="utf-8").splitlines()
         if line.startswith("|") and f"| `{name}` |" in line
     )
-    assert f"`{data['command']}" in row
+    assert f"{data['command']}`" in row
 
 
 def test_a_script_report_keeps_its_options_and_the_load(monkeypatch: pytest.MonkeyPatch) -> None:
