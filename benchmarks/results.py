@@ -22,6 +22,7 @@ import argparse
 import functools
 import hashlib
 import json
+import os
 import re
 import subprocess
 import sys
@@ -281,11 +282,15 @@ def _render_predictor_checkpoints(data: dict[str, Any]) -> str:
     return render_checkpoints(data)
 
 
-def _script_report(script: str) -> dict[str, Any]:
-    """Run ``python benchmarks/SCRIPT`` with its defaults and keep its printed report and wall time."""
+def _script_report(script: str, *args: str) -> dict[str, Any]:
+    """Run ``python benchmarks/SCRIPT ARGS`` and keep its printed report, wall time and the load it met.
+
+    The machines here are shared, so the 1-minute load average at the start is kept beside a speed.
+    """
+    load = os.getloadavg()[0]
     start = time.perf_counter()
     proc = subprocess.run(
-        [sys.executable, str(REPO / "benchmarks" / script)],
+        [sys.executable, str(REPO / "benchmarks" / script), *args],
         capture_output=True,
         text=True,
         check=False,
@@ -293,11 +298,15 @@ def _script_report(script: str) -> dict[str, Any]:
     )
     if proc.returncode != 0:
         raise RuntimeError(f"benchmarks/{script} failed ({proc.returncode}): {proc.stderr[-2000:]}")
-    return {
-        "command": f"python benchmarks/{script}",
+    data: dict[str, Any] = {
+        "command": " ".join(["python", f"benchmarks/{script}", *args]),
         "output": proc.stdout,
         "wall_seconds": round(time.perf_counter() - start, 1),
+        "load_average": round(load, 2),
     }
+    if args:
+        data["defaults"] = False
+    return data
 
 
 def _measure_predictor_speed() -> dict[str, Any]:
@@ -307,8 +316,10 @@ def _measure_predictor_speed() -> dict[str, Any]:
 
 def _script_block(data: dict[str, Any], name: str, timing: str) -> str:
     """A script's report as a code block, under the line that says how and where it was measured."""
+    options = " (defaults)" if data.get("defaults", True) else ""
+    load = f" load average {data['load_average']:.1f} at the start;" if "load_average" in data else ""
     return (
-        f"Measured with `{data['command']}` (defaults) on commit `{data['commit'][:12]}`,{timing}"
+        f"Measured with `{data['command']}`{options} on commit `{data['commit'][:12]}`,{timing}{load}"
         f" rendered from `benchmarks/results/{name}.json` by `python -m benchmarks.results`.\n\n"
         f"```\n{data['output'].rstrip()}\n```"
     )
@@ -337,6 +348,95 @@ def _render_first_result_summary(data: dict[str, Any]) -> str:
         f"Measured by `{data['command']}` on commit `{data['commit'][:12]}` (2 cores; rendered from"
         f" `benchmarks/results/first_result.json`, details in [docs/benchmarks.md](docs/benchmarks.md)):\n\n"
         f"```\n{line}\n```"
+    )
+
+
+BENCHMARK_SCRIPTS: dict[str, tuple[str, tuple[str, ...], str]] = {
+    "env_throughput": ("env_throughput.py", (), "speed"),
+    "env_throughput_wrappers": ("env_throughput.py", ("--wrappers",), "speed"),
+    "scaling": ("scaling.py", (), "speed"),
+    "eval_throughput": ("eval_throughput.py", ("--episodes", "1"), "workers"),
+    "soak": ("soak.py", ("--scenario", "default"), "memory"),
+    "world_health": ("world_health.py", (), "counts"),
+    "oracle_cost": ("oracle_cost.py", ("--seeds", "2"), "speed"),
+}
+"""Entry name → (script in ``benchmarks/``, its options as ``docs/benchmarks.md`` documents them, what it
+reports: speeds against a peer, speeds by worker count, memory or counts)."""
+
+_SCRIPT_TIMING = {
+    "speed": " 2 cores, {wall:.0f} s; speeds depend on the machine and its load, the ratios to the peer"
+    " timed in the same run much less;",
+    "workers": " 2 cores, {wall:.0f} s; episodes/s depend on the machine and its load, and a second worker"
+    " helps only as far as a second core is free;",
+    "memory": " {wall:.0f} s; resident memory depends on the platform's libraries;",
+    "counts": " {wall:.0f} s;",
+}
+"""What the line above a script's report says about its figures, per kind."""
+
+
+def _render_script(data: dict[str, Any], name: str) -> str:
+    kind = BENCHMARK_SCRIPTS[name][2]
+    return _script_block(data, name, _SCRIPT_TIMING[kind].format(wall=data["wall_seconds"]))
+
+
+def _script_entry(name: str, tier: str, fingerprint: Callable[[], str] | None = None) -> Entry:
+    """A benchmark script of ``docs/benchmarks.md`` run with its documented options, its report in a block."""
+    script, args, _ = BENCHMARK_SCRIPTS[name]
+    return Entry(
+        name,
+        tier,
+        functools.partial(_script_report, script, *args),
+        functools.partial(_render_script, name=name),
+        REPO / "docs" / "benchmarks.md",
+        fingerprint=fingerprint,
+    )
+
+
+PREDICTOR_COMPARE_RUNS = (("s-cgru", ()), ("cvm", ("--predictor", "cvm")))
+"""The two runs of the `crossing-eval compare` example: output folder → the options beside
+``--policies yielding``."""
+
+
+def _crossing_eval(args: list[str], cwd: Path) -> str:
+    proc = subprocess.run(
+        [sys.executable, "-m", "crossing_eval.cli", *args],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=cwd,
+    )
+    if proc.returncode != 0:
+        raise RuntimeError(
+            f"crossing-eval {' '.join(args)} failed ({proc.returncode}): {proc.stderr[-2000:]}"
+        )
+    return proc.stdout
+
+
+def _measure_predictor_compare() -> dict[str, Any]:
+    """`crossing-eval --policies yielding` with S-CGRU's paths (the default) and with CVM's (2 workers each),
+    then `crossing-eval compare` of the two: what the learned predictor changes in how `yielding` drives."""
+    start = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:  # relative folder names: the report names no machine path
+        for out, extra in PREDICTOR_COMPARE_RUNS:
+            _crossing_eval(
+                ["--policies", "yielding", *extra, "--out", out, "--no-progress", "--workers", "2"], Path(tmp)
+            )
+        output = _crossing_eval(["compare", *(out for out, _ in PREDICTOR_COMPARE_RUNS)], Path(tmp))
+    commands = [
+        " ".join(["crossing-eval", "--policies", "yielding", *extra, "--out", out])
+        for out, extra in PREDICTOR_COMPARE_RUNS
+    ]
+    commands.append(" ".join(["crossing-eval", "compare", *(out for out, _ in PREDICTOR_COMPARE_RUNS)]))
+    return {"commands": commands, "output": output, "wall_seconds": round(time.perf_counter() - start, 1)}
+
+
+def _render_predictor_compare(data: dict[str, Any]) -> str:
+    commands = ", then ".join(f"`{c}`" for c in data["commands"])
+    return (
+        f"Measured with {commands} (2 workers, {data['wall_seconds']:.0f} s in all) on commit"
+        f" `{data['commit'][:12]}`; rendered from `benchmarks/results/predictor_compare.json` by"
+        " `python -m benchmarks.results`.\n\n"
+        f"```\n{data['output'].rstrip()}\n```"
     )
 
 
@@ -494,6 +594,20 @@ ENTRIES: dict[str, Entry] = {
             _measure_sim_transfer,
             _render_sim_transfer,
             REPO / "docs" / "predictors.md",
+        ),
+        _script_entry("env_throughput", "fast"),
+        _script_entry("env_throughput_wrappers", "slow"),
+        _script_entry("scaling", "slow"),
+        _script_entry("eval_throughput", "slow", fingerprint=learned_fingerprint),
+        _script_entry("soak", "slow"),
+        _script_entry("world_health", "slow"),
+        _script_entry("oracle_cost", "slow"),
+        Entry(
+            "predictor_compare",
+            "slow",
+            _measure_predictor_compare,
+            _render_predictor_compare,
+            REPO / "docs" / "evaluation.md",
         ),
     )
 }

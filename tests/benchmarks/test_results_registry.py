@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -28,19 +29,73 @@ def test_every_rendered_table_equals_its_json(name: str, fingerprint: str) -> No
     )
 
 
-def test_a_hand_edited_number_is_caught(tmp_path: Path, fingerprint: str) -> None:
-    entry = results.ENTRIES["default_table"]
+TAMPERED = (
+    "default_table",
+    "first_result",
+    "predictor_speed",
+    *results.BENCHMARK_SCRIPTS,
+    "predictor_compare",
+)
+"""Entries whose block shows a printed report in a code block: a digit in it is a measured figure."""
+
+
+@pytest.mark.parametrize("name", TAMPERED)
+def test_a_hand_edited_number_is_caught(name: str, tmp_path: Path, fingerprint: str) -> None:
+    entry = results.ENTRIES[name]
+    original = entry.document.read_text(encoding="utf-8")
     doc = tmp_path / "doc.md"
-    doc.write_text(entry.document.read_text(encoding="utf-8"), encoding="utf-8")
+    doc.write_text(original, encoding="utf-8")
     edited = dataclasses.replace(entry, document=doc)
     assert results.committed_block(edited) == results.rendered_block(edited, fingerprint)
-    text = doc.read_text(encoding="utf-8")
     block = results.committed_block(edited)
     i = next(k for k, ch in enumerate(block) if ch.isdigit() and k > block.index("```"))
     tampered = block[:i] + str((int(block[i]) + 1) % 10) + block[i + 1 :]
-    doc.write_text(text.replace(block, tampered), encoding="utf-8")
+    doc.write_text(original.replace(block, tampered), encoding="utf-8")
     assert results.committed_block(edited) != results.rendered_block(edited, fingerprint)
-    assert results.main(["--check"]) == 0  # the real documents are untouched
+    assert entry.document.read_text(encoding="utf-8") == original  # the real document is untouched
+
+
+def test_the_committed_documents_pass_the_check() -> None:
+    if not (data_root() / "eth_ucy").is_dir():
+        pytest.skip(f"the predictor entries' fingerprint evaluates on ETH/UCY, not found at {data_root()}")
+    assert results.main(["--check"]) == 0
+
+
+@pytest.mark.parametrize("name", sorted(results.BENCHMARK_SCRIPTS))
+def test_benchmarks_page_lists_each_script_with_its_registered_command(name: str) -> None:
+    """The overview table of docs/benchmarks.md names the command the entry runs and stores."""
+    script, args, _ = results.BENCHMARK_SCRIPTS[name]
+    data = json.loads(results.ENTRIES[name].json_path.read_text(encoding="utf-8"))
+    assert data["command"] == " ".join(["python", f"benchmarks/{script}", *args])
+    row = next(
+        line
+        for line in results.ENTRIES[name].document.read_text(encoding="utf-8").splitlines()
+        if line.startswith("|") and f"| `{name}` |" in line
+    )
+    assert f"{data['command']}`" in row
+
+
+def test_a_script_report_keeps_its_options_and_the_load(monkeypatch: pytest.MonkeyPatch) -> None:
+    calls = []
+
+    def fake_run(cmd: list[str], **kwargs: object) -> subprocess.CompletedProcess[str]:
+        calls.append(cmd)
+        return subprocess.CompletedProcess(cmd, 0, stdout="12.5 steps/s\n", stderr="")
+
+    monkeypatch.setattr(results.subprocess, "run", fake_run)
+    monkeypatch.setattr(results.os, "getloadavg", lambda: (1.234, 0.0, 0.0))
+    data = results._script_report("soak.py", "--scenario", "default")
+    assert calls[0][1:] == [str(results.REPO / "benchmarks" / "soak.py"), "--scenario", "default"]
+    assert data["command"] == "python benchmarks/soak.py --scenario default" and data["defaults"] is False
+    assert data["load_average"] == 1.23 and data["output"] == "12.5 steps/s\n"
+    block = results._render_script({**data, "commit": "c" * 40}, "soak")
+    assert "`python benchmarks/soak.py --scenario default` on commit `cccccccccccc`" in block
+    assert "(defaults)" not in block and "load average 1.2 at the start" in block
+    assert block.endswith("```\n12.5 steps/s\n```")
+    plain = results._script_report("predictors.py")
+    assert "defaults" not in plain and "(defaults)" in results._script_block(
+        {**plain, "commit": "c" * 40}, "x", ""
+    )
 
 
 def test_a_table_measured_on_other_behaviour_is_marked_stale(tmp_path: Path) -> None:
