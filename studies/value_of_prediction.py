@@ -59,6 +59,7 @@ FINGERPRINT_STEPS = 150
 def _probe_digest(intention: str, predictor: str) -> str:
     """Hash of a short `predictive_yielding` rollout on one zebra under one pair of wrappers."""
     from crossing_eval.tasks import episode_seed
+    from predictors.learned_intent_weights import WEIGHTS_PATH
     from rollout import RolloutSpec, build, run_episode
 
     seed = episode_seed(BASE_SEED, "zebra_case1", 0)
@@ -67,15 +68,24 @@ def _probe_digest(intention: str, predictor: str) -> str:
     episode = run_episode(run.env, seed, policy=run.policy, max_steps=FINGERPRINT_STEPS)
     run.env.close()
     digest = hashlib.sha256(f"{intention}/{predictor}".encode())
+    if intention in WEIGHTS_INTENTIONS:
+        # A short rollout on one zebra may never meet the situation a weights change moves (a new release
+        # bound acts on people waiting for a bus), so the file itself is part of the row's fingerprint.
+        digest.update(WEIGHTS_PATH.read_bytes())
     digest.update(json.dumps(episode.actions).encode())
     digest.update(json.dumps(episode.result, sort_keys=True, default=str).encode())
     return digest.hexdigest()
+
+
+WEIGHTS_INTENTIONS: tuple[str, ...] = ("learned", "qlb", "classical")
+"""Intention wrappers that read ``predictors/weights/learned_intent.json`` (calibration, release bound)."""
 
 
 PROBES: tuple[tuple[str, str], ...] = (
     ("oracle", "none"),
     ("learned", "none"),
     ("qlb", "none"),
+    ("classical", "none"),
     ("oracle-flip=0.4", "none"),
     ("none", "cvm"),
     ("none", "s-cgru"),

@@ -141,3 +141,21 @@ def test_a_row_whose_fingerprint_changed_is_re_run_alone(tmp_path: Path) -> None
     assert after["none__none.json"] == stamps["none__none.json"]
     assert after[changed] != stamps[changed]
     assert json.loads((tmp_path / changed).read_text())["fingerprint"] == "new"
+
+
+def test_an_intent_row_goes_stale_when_its_weights_file_changes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A new release bound may not move a short probe rollout, so the weights file is part of the stamp of
+    every row whose wrapper reads it, and of no other row."""
+    import predictors.learned_intent_weights as liw
+    from studies.value_of_prediction import _probe_digest
+
+    probe = _probe_digest.__wrapped__
+    before = probe("learned", "none"), probe("oracle-flip=0.4", "none")
+    edited = tmp_path / "learned_intent.json"
+    edited.write_bytes(liw.WEIGHTS_PATH.read_bytes() + b"\n")
+    monkeypatch.setattr(liw, "WEIGHTS_PATH", edited)
+    after = probe("learned", "none"), probe("oracle-flip=0.4", "none")
+    assert after[0] != before[0]
+    assert after[1] == before[1]
