@@ -80,6 +80,8 @@ class Args:
     """Adam learning rate."""
     gamma: float = 0.995
     """Discount factor (0.995: a 20 s horizon at 0.1 s steps, the time a stop at the crossing takes)."""
+    time_reward: float | None = None
+    """Training reward per second of simulated time (`RewardConfig.time`; None: the env's default)."""
     predictors: bool = False
     """Train with the QLB intention and S-CGRU trajectory wrappers on."""
     bc_steps: int = 0
@@ -130,6 +132,9 @@ def parse_args(argv: list[str] | None = None) -> Args:
     p.add_argument("--batch-size", type=positive, default=d.batch_size, help="PPO minibatch size")
     p.add_argument("--learning-rate", type=float, default=d.learning_rate, help="Adam learning rate")
     p.add_argument("--gamma", type=float, default=d.gamma, help="discount factor")
+    p.add_argument(
+        "--time-reward", type=float, default=d.time_reward, help="reward per simulated s (default: env's)"
+    )
     p.add_argument("--predictors", action="store_true", help="train with the prediction wrappers on")
     p.add_argument(
         "--bc-steps", type=non_negative, default=d.bc_steps, help="warm start: imitate the yielding policy"
@@ -160,7 +165,7 @@ def parse_args(argv: list[str] | None = None) -> Args:
         p.error("--subproc: the Lagrange multiplier is shared in-process; run ppo_lagrangian without it")
     return Args(
         a.timesteps, a.algo, a.cost_budget, a.lambda_lr, a.residual, names, a.n_envs, a.subproc, a.n_steps,
-        a.batch_size, a.learning_rate, a.gamma,
+        a.batch_size, a.learning_rate, a.gamma, a.time_reward,
         a.predictors, a.bc_steps, a.log_std_init, a.seed, a.eval_every, a.eval_episodes, a.out,
         not a.no_progress,
     )  # fmt: skip
@@ -172,8 +177,11 @@ def make_env(
     algo: str = "ppo",
     multiplier: Any = None,
     residual: float = 0.0,
+    time_reward: float | None = None,
 ) -> Any:
     """One training env: a scenario drawn per reset, episode metrics in `info`, optional predictors.
+
+    ``time_reward`` replaces the reward's cost of time (`RewardConfig.time`, per second) when not None.
 
     Stack (inner to outer): the env, `ScenarioMix` (scenario per reset, episode metrics), the shield
     (``shielded``), the Lagrangian reward (``ppo_lagrangian``, λ from `multiplier`), the prediction wrappers
@@ -231,7 +239,12 @@ def make_env(
                 }
             return obs, reward, terminated, truncated, info
 
-    env = gym.make(crossing_env.ENV_ID, scenario=scenarios[0])
+    config = None
+    if time_reward is not None:
+        from scenarios.config import EnvConfig, RewardConfig
+
+        config = EnvConfig(reward=RewardConfig(time=time_reward))
+    env = gym.make(crossing_env.ENV_ID, scenario=scenarios[0], config=config)
     env = ScenarioMix(env, scenarios)
     if algo == "shielded":
         from agents import make_policy
@@ -437,7 +450,9 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     multiplier = Multiplier(0.0) if args.algo == "ppo_lagrangian" else None
     fns = [
-        lambda: make_env(args.scenarios, args.predictors, args.algo, multiplier, args.residual)
+        lambda: make_env(
+            args.scenarios, args.predictors, args.algo, multiplier, args.residual, args.time_reward
+        )
         for _ in range(args.n_envs)
     ]
     venv = SubprocVecEnv(fns, start_method="forkserver") if args.subproc else DummyVecEnv(fns)

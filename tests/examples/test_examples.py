@@ -95,3 +95,27 @@ def test_ppo_lagrangian_raises_its_multiplier_while_the_cost_exceeds_the_budget(
     assert rows and sum(costs) > 0
     assert lambdas[0] == 0.0 and lambdas[-1] > 0.0 and lambdas == sorted(lambdas)
     assert "final λ" in proc.stdout
+
+
+def test_ppo_time_reward_replaces_the_cost_of_time(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--time-reward`` reaches the training env's reward (the shielded recipe weighs time more)."""
+    import importlib.util
+
+    import numpy as np
+
+    path = REPO / "examples" / "ppo_crossing.py"
+    spec = importlib.util.spec_from_file_location("ppo_crossing_time", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, module)  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    assert module.parse_args(["--time-reward", "-1"]).time_reward == -1.0
+    assert module.parse_args([]).time_reward is None
+    terms = {}
+    for weight in (None, -1.0):
+        env = module.make_env(("zebra_case1",), False, "shielded", None, 2.0, weight)
+        env.reset(seed=0)
+        terms[weight] = env.step(np.zeros(1, dtype=np.float32))[4]["rewards"]["time"]
+        env.close()
+    assert terms[None] == pytest.approx(-0.2 * 0.1)  # the env's default: −0.2 per second, 0.1 s steps
+    assert terms[-1.0] == pytest.approx(-1.0 * 0.1)
