@@ -14,9 +14,18 @@ ascending order, on `EPISODES` episodes per scenario seeded from `SELECTION_SEED
 value study use 2024, so they never meet these episodes). A bound passes with no collision and yield
 compliance ≥ `MIN_COMPLIANCE` over the episodes; the kept bound is the last that passes before the first that
 fails (compliance falls as the bound rises, so the sweep stops there), or the open-loop bound if the first
-grid value fails. The chosen thresholds, the open-loop ones and the whole sweep are written into the release
+grid value fails.
+
+Then each kept bound is **confirmed** on `CONFIRM_EPISODES` further episodes per scenario (base seed
+`CONFIRM_SEED`, also never evaluated) and stepped down the grid until it passes there too (never below the
+open-loop bound). Ten episodes per scenario do not see every rare release: the first version of this study
+had no confirmation and kept QLB's 0.10, which passed 181 of 181 obligations in the sweep and then broke
+compliance on the evaluation episodes of the value study (0.983; `children_running` 0.922).
+
+The chosen thresholds, the open-loop ones, the sweep and the confirmations are written into the release
 section of ``predictors/weights/learned_intent.json`` (and its sha256 manifest); nothing else in the file
-changes.
+changes. A stored sweep is reused when the model (heads and calibration) and the settings are unchanged
+(``--fresh`` re-runs it).
 """
 
 from __future__ import annotations
@@ -42,6 +51,10 @@ EPISODES = 10
 """Selection episodes per scenario and bound."""
 SELECTION_SEED = 777
 """Base seed of the selection episodes (``crossing-eval`` defaults to 2024)."""
+CONFIRM_EPISODES = 30
+"""Confirmation episodes per scenario of a kept bound."""
+CONFIRM_SEED = 778
+"""Base seed of the confirmation episodes."""
 MIN_COMPLIANCE = 0.99
 """Yield compliance a bound must keep on the selection episodes (the issue's target)."""
 POLICY = "predictive_yielding"
@@ -67,19 +80,17 @@ class FixedBound(gym.ObservationWrapper):
 _BUILT: dict[tuple[str, str], Any] = {}
 
 
-def _episode(job: tuple[str, str, float, int]) -> dict[str, Any]:
-    """One selection episode: (model, scenario, bound, episode index) → its scored result."""
+def _episode(job: tuple[str, str, float, int, int]) -> dict[str, Any]:
+    """One episode: (model, scenario, bound, episode index, base seed) → its scored result."""
     from crossing_eval.tasks import episode_seed
     from rollout import RolloutSpec, build, run_episode
 
-    model, scenario, bound, index = job
+    model, scenario, bound, index, base_seed = job
     key = (model, scenario)
     if key not in _BUILT:
         _BUILT[key] = build(RolloutSpec(scenario=scenario, policy=POLICY, intention=model, predictor="none"))
     run = _BUILT[key]
-    episode = run_episode(
-        FixedBound(run.env, bound), episode_seed(SELECTION_SEED, scenario, index), run.policy
-    )
+    episode = run_episode(FixedBound(run.env, bound), episode_seed(base_seed, scenario, index), run.policy)
     r = episode.result
     return {
         "scenario": scenario,
@@ -131,19 +142,63 @@ def sweep(
     """The grid points of `model`, ascending, up to and including the first that fails."""
     points = []
     for bound in grid:
-        jobs = [(model, sc, bound, i) for sc in scenarios for i in range(episodes)]
-        start = time.perf_counter()
-        point = summarise(bound, list(pool.map(_episode, jobs)))
+        point = evaluate(model, bound, scenarios, episodes, SELECTION_SEED, pool)
         points.append(point)
-        print(
-            f"{model} bound {bound:.2f}: {point['collisions']} collisions, compliance"
-            f" {point['compliant']}/{point['obligations']}, mean duration {point['mean_duration']:.2f} s"
-            f" ({time.perf_counter() - start:.0f} s)",
-            file=sys.stderr,
-        )
         if not passes(point):
             break
     return points
+
+
+def evaluate(
+    model: str,
+    bound: float,
+    scenarios: Sequence[str],
+    episodes: int,
+    base_seed: int,
+    pool: ProcessPoolExecutor,
+) -> dict[str, Any]:
+    """One grid point: `episodes` per scenario seeded from `base_seed` at `bound`."""
+    jobs = [(model, sc, bound, i, base_seed) for sc in scenarios for i in range(episodes)]
+    start = time.perf_counter()
+    point = summarise(bound, list(pool.map(_episode, jobs)))
+    print(
+        f"{model} bound {bound:.2f} (seed {base_seed}): {point['collisions']} collisions, compliance"
+        f" {point['compliant']}/{point['obligations']}, mean duration {point['mean_duration']:.2f} s"
+        f" ({time.perf_counter() - start:.0f} s)",
+        file=sys.stderr,
+    )
+    return point
+
+
+def confirm(
+    model: str,
+    chosen: float,
+    floor: float,
+    scenarios: Sequence[str],
+    episodes: int,
+    pool: ProcessPoolExecutor,
+    grid: Sequence[float] = GRID,
+) -> tuple[float, list[dict[str, Any]]]:
+    """The largest bound at or below `chosen` that also passes on the confirmation episodes.
+
+    Steps down `grid` from `chosen`; `floor` (the open-loop bound) is kept unconfirmed if nothing above it
+    passes. Returns the bound and every confirmation point run.
+    """
+    points: list[dict[str, Any]] = []
+    for bound in sorted((b for b in grid if floor < b <= chosen), reverse=True):
+        point = evaluate(model, bound, scenarios, episodes, CONFIRM_SEED, pool)
+        points.append(point)
+        if passes(point):
+            return bound, points
+    return floor, points
+
+
+def model_digest(weights: dict[str, Any]) -> str:
+    """sha256 of everything in the weights but the release section and the training notes."""
+    import hashlib
+
+    kept = {k: v for k, v in weights.items() if k not in ("release", "training")}
+    return hashlib.sha256(json.dumps(kept, sort_keys=True).encode()).hexdigest()
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -159,34 +214,60 @@ def main(argv: Sequence[str] | None = None) -> int:
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     parser.add_argument("--episodes", type=int, default=EPISODES, help="selection episodes per scenario")
+    parser.add_argument(
+        "--confirm-episodes", type=int, default=CONFIRM_EPISODES, help="confirmation episodes per scenario"
+    )
+    parser.add_argument("--fresh", action="store_true", help="re-run the sweep even if the stored one fits")
     parser.add_argument("--workers", type=int, default=2, help="worker processes")
     parser.add_argument("--weights", type=Path, default=WEIGHTS_PATH, help="weights file to update")
     args = parser.parse_args(argv)
-    if args.episodes < 1:
-        parser.error(f"--episodes must be >= 1, got {args.episodes}")
+    if args.episodes < 1 or args.confirm_episodes < 1:
+        parser.error(
+            f"--episodes and --confirm-episodes must be >= 1, got {args.episodes}, {args.confirm_episodes}"
+        )
     weights = read_weights(args.weights, args.weights.with_name("learned_intent.sha256.json"))
     scenarios = sorted(list_scenarios())
     start = time.perf_counter()
     release = weights["release"]
-    closed: dict[str, Any] = {}
-    context = multiprocessing.get_context(pool_start_method())
-    with ProcessPoolExecutor(max_workers=args.workers, mp_context=context) as pool:
-        for model in MODELS:
-            entry = release["models"][model]
-            open_loop = float(entry.get("open_loop_threshold", entry["threshold"]))
-            points = sweep(model, scenarios, args.episodes, pool)
-            entry["open_loop_threshold"] = open_loop
-            entry["threshold"] = choose(points, open_loop)
-            closed[model] = points
-    release["closed_loop"] = {
-        "command": f"python -m studies.release_bounds --episodes {args.episodes}",
+    settings = {
         "policy": POLICY,
         "seed": SELECTION_SEED,
         "episodes_per_scenario": args.episodes,
         "scenarios": scenarios,
         "min_compliance": MIN_COMPLIANCE,
         "grid": list(GRID),
-        "sweeps": closed,
+        "model_sha256": model_digest(weights),
+    }
+    previous = release.get("closed_loop") or {}
+    reuse = not args.fresh and all(previous.get(k) == v for k, v in settings.items())
+    sweeps: dict[str, Any] = dict(previous["sweeps"]) if reuse else {}
+    confirmations: dict[str, Any] = {}
+    context = multiprocessing.get_context(pool_start_method())
+    with ProcessPoolExecutor(max_workers=args.workers, mp_context=context) as pool:
+        for model in MODELS:
+            entry = release["models"][model]
+            open_loop = float(entry.get("open_loop_threshold", entry["threshold"]))
+            if model not in sweeps:
+                sweeps[model] = sweep(model, scenarios, args.episodes, pool)
+            else:
+                print(f"{model}: sweep reused from the weights file", file=sys.stderr)
+            kept = choose(sweeps[model], open_loop)
+            bound, confirmations[model] = confirm(
+                model, kept, open_loop, scenarios, args.confirm_episodes, pool
+            )
+            entry["open_loop_threshold"] = open_loop
+            entry["threshold"] = bound
+    release["closed_loop"] = {
+        **settings,
+        "command": (
+            f"python -m studies.release_bounds --episodes {args.episodes}"
+            f" --confirm-episodes {args.confirm_episodes}"
+        ),
+        "sweeps": sweeps,
+        "confirm_seed": CONFIRM_SEED,
+        "confirm_episodes_per_scenario": args.confirm_episodes,
+        "confirmations": confirmations,
+        "sweeps_reused": reuse,
         "wall_seconds": round(time.perf_counter() - start, 1),
     }
     digest = write_weights(weights, args.weights)

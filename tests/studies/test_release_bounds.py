@@ -67,3 +67,24 @@ def test_the_sweep_stops_at_the_first_failing_bound(monkeypatch: pytest.MonkeyPa
     points = rb.sweep("learned", ["x"], 1, Pool(), grid=(0.1, 0.2, 0.3))  # type: ignore[arg-type]
     assert [p["bound"] for p in points] == [0.1, 0.2]
     assert rb.choose(points, 0.0) == 0.1
+
+
+def test_a_kept_bound_steps_down_until_the_confirmation_episodes_pass_too() -> None:
+    """Confirmation: other seeds, down the grid from the kept bound; the open-loop floor if none pass."""
+    import studies.release_bounds as rb
+
+    class Pool:
+        def __init__(self, worst_passing: float) -> None:
+            self.worst_passing, self.seeds = worst_passing, set()
+
+        def map(self, fn: object, jobs: list) -> list:
+            self.seeds.add(jobs[0][4])
+            ok = jobs[0][2] <= self.worst_passing
+            return [{"collision": False, "compliant": int(ok), "obligations": 1, "duration": 1.0}]
+
+    pool = Pool(0.35)
+    bound, points = rb.confirm("qlb", 0.4, 0.0, ["x"], 1, pool, grid=(0.3, 0.35, 0.4, 0.45))  # type: ignore[arg-type]
+    assert bound == 0.35 and [p["bound"] for p in points] == [0.4, 0.35]
+    assert pool.seeds == {rb.CONFIRM_SEED} and rb.CONFIRM_SEED != rb.SELECTION_SEED
+    bound, points = rb.confirm("qlb", 0.1, 0.015, ["x"], 1, Pool(0.0), grid=(0.05, 0.1))  # type: ignore[arg-type]
+    assert bound == 0.015 and [p["bound"] for p in points] == [0.1, 0.05]
