@@ -252,6 +252,11 @@ def render_body(data: dict[str, Any]) -> str:
             f" collision or yield compliance below {closed['min_compliance']:.2f}; the kept bound is the last"
             " step before it"
         )
+        if "confirmations" in closed:
+            how += (
+                f", then confirmed on {closed['confirm_episodes_per_scenario']} further episodes per scenario"
+                f" (base seed {closed['confirm_seed']}) and stepped down until it passes there too"
+            )
     lines += [
         "",
         f"**Release risk bounds**: {how}. The open-loop bound is the training's proxy: the largest"
@@ -272,16 +277,33 @@ def render_body(data: dict[str, Any]) -> str:
             "",
             "Closed-loop sweep (every step run; the last one of each model failed, or ended the grid):",
             "",
-            "| model | bound | episodes | collisions | compliant / obligations | mean episode duration s |",
+            SWEEP_HEADER,
             "|---|---|---|---|---|---|",
         ]
         for model, points in closed["sweeps"].items():
+            lines += [_sweep_row(model, pt) for pt in points]
+        if "confirmations" in closed:
             lines += [
-                f"| {model} | {pt['bound']:.2f} | {pt['episodes']} | {pt['collisions']} |"
-                f" {pt['compliant']} / {pt['obligations']} | {pt['mean_duration']:.2f} |"
-                for pt in points
+                "",
+                "Confirmation of the kept bounds (from the kept bound down; the last one run is the release"
+                " bound unless every one failed):",
+                "",
+                SWEEP_HEADER,
+                "|---|---|---|---|---|---|",
             ]
+            for model, points in closed["confirmations"].items():
+                lines += [_sweep_row(model, pt) for pt in points]
     return "\n".join(lines)
+
+
+SWEEP_HEADER = "| model | bound | episodes | collisions | compliant / obligations | mean episode duration s |"
+
+
+def _sweep_row(model: str, pt: dict[str, Any]) -> str:
+    return (
+        f"| {model} | {pt['bound']:.2f} | {pt['episodes']} | {pt['collisions']} |"
+        f" {pt['compliant']} / {pt['obligations']} | {pt['mean_duration']:.2f} |"
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
