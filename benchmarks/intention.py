@@ -273,37 +273,30 @@ def render_body(data: dict[str, Any]) -> str:
             f" | {r['crossers_released']:.3f} | {r['non_crosser_samples_released']:.3f} |"
         )
     if closed is not None:
-        lines += [
-            "",
-            "Closed-loop sweep (every step run; the last one of each model failed, or ended the grid):",
-            "",
-            SWEEP_HEADER,
-            "|---|---|---|---|---|---|",
-        ]
-        for model, points in closed["sweeps"].items():
-            lines += [_sweep_row(model, pt) for pt in points]
+        title = "Closed-loop sweep (every step run; the last one of each model failed, or ended the grid):"
+        lines += _sweep_table(title, closed["sweeps"])
         if "confirmations" in closed:
-            lines += [
-                "",
+            title = (
                 "Confirmation of the kept bounds (from the kept bound down; the last one run is the release"
-                " bound unless every one failed):",
-                "",
-                SWEEP_HEADER,
-                "|---|---|---|---|---|---|",
-            ]
-            for model, points in closed["confirmations"].items():
-                lines += [_sweep_row(model, pt) for pt in points]
+                " bound unless every one failed):"
+            )
+            lines += _sweep_table(title, closed["confirmations"])
     return "\n".join(lines)
 
 
 SWEEP_HEADER = "| model | bound | episodes | collisions | compliant / obligations | mean episode duration s |"
 
 
-def _sweep_row(model: str, pt: dict[str, Any]) -> str:
-    return (
-        f"| {model} | {pt['bound']:.2f} | {pt['episodes']} | {pt['collisions']} |"
-        f" {pt['compliant']} / {pt['obligations']} | {pt['mean_duration']:.2f} |"
-    )
+def _sweep_table(title: str, sweeps: dict[str, list[dict[str, Any]]]) -> list[str]:
+    """Markdown lines of closed-loop release-bound points, one row per (model, bound) run."""
+    lines = ["", title, "", SWEEP_HEADER, "|---|---|---|---|---|---|"]
+    for model, points in sweeps.items():
+        lines += [
+            f"| {model} | {pt['bound']:.2f} | {pt['episodes']} | {pt['collisions']} |"
+            f" {pt['compliant']} / {pt['obligations']} | {pt['mean_duration']:.2f} |"
+            for pt in points
+        ]
+    return lines
 
 
 def main(argv: list[str] | None = None) -> int:
