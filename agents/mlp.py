@@ -14,7 +14,9 @@ File layout (every entry an array):
   whose output is the Gaussian's mean action, clipped to [−1, 1] (the greedy action);
 - ``shielded``: whether the policy was trained to act through `agents.shield.YieldingShield` (the registry
   then deploys it through the shield, as it was trained); ``residual_scale``: 0, or the m/s² per unit of
-  action of a policy trained as a residual on the rule's acceleration (`YieldingShield.apply`).
+  action of a policy trained as a residual on the rule's acceleration (`YieldingShield.apply`);
+  ``residual_offset`` (optional, 0 when absent): added to a residual policy's action before the shield
+  clips it to [−1, 1] (1: the untrained actor asks for the most the envelope allows).
 """
 
 from __future__ import annotations
@@ -57,6 +59,8 @@ class MLPWeights:
     """Deploy through the yielding shield."""
     residual_scale: float = 0.0
     """> 0: the action is a residual on the rule's acceleration, this many m/s² per unit."""
+    residual_offset: float = 0.0
+    """Added to the residual action before it is clipped to [−1, 1] (`YieldingShield.apply`)."""
 
 
 def load_mlp(path: str | Path) -> MLPWeights:
@@ -105,6 +109,7 @@ def load_mlp(path: str | Path) -> MLPWeights:
         layers=tuple(layers),
         shielded=bool(arrays["shielded"]),
         residual_scale=float(arrays["residual_scale"]) if "residual_scale" in arrays else 0.0,
+        residual_offset=float(arrays["residual_offset"]) if "residual_offset" in arrays else 0.0,
     )
 
 
@@ -145,7 +150,13 @@ class MLPPolicy:
 
 
 def export_sb3(
-    model: Any, vec_normalize: Any, path: str | Path, *, shielded: bool = False, residual_scale: float = 0.0
+    model: Any,
+    vec_normalize: Any,
+    path: str | Path,
+    *,
+    shielded: bool = False,
+    residual_scale: float = 0.0,
+    residual_offset: float = 0.0,
 ) -> Path:
     """Write an SB3 ``MultiInputPolicy`` actor with tanh MLP and its VecNormalize statistics as a policy file.
 
@@ -172,6 +183,7 @@ def export_sb3(
         arrays[f"bias/{i}"] = state[f"{name}.bias"].astype(np.float32)
     arrays["shielded"] = np.array(bool(shielded))
     arrays["residual_scale"] = np.array(float(residual_scale))
+    arrays["residual_offset"] = np.array(float(residual_offset))
     out = Path(path)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(out.name + ".partial.npz")

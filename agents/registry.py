@@ -223,7 +223,26 @@ def mlp_policy(path: str | Path, scenario: ScenarioConfig | None = None, dt: flo
         return learned
     cfg = YieldingConfig() if scenario is None else replace(YieldingConfig(), **scenario_settings(scenario))
     shield = YieldingShield(cfg if dt is None else replace(cfg, dt=float(dt)))
-    return ShieldedPolicy(learned, shield, learned.weights.residual_scale)
+    w = learned.weights
+    return ShieldedPolicy(learned, shield, w.residual_scale, w.residual_offset)
+
+
+SHIELD_MAX_RESIDUAL = 2.0
+"""m/s² per unit of residual of `shield_max_policy` (the shielded learner's ``--residual``)."""
+
+
+def shield_max_policy(scenario: ScenarioConfig | None = None, dt: float | None = None) -> Policy:
+    """The envelope-max reference (not learned): `yielding` + the full residual, through the shield.
+
+    Every step asks for the rule's acceleration plus `SHIELD_MAX_RESIDUAL` and lets the shield clip it:
+    the most the envelope allows. It is the shielded learner's starting point (``--residual-offset 1``,
+    actor action 0), built the same way (spec ``agents.registry:shield_max_policy``).
+    """
+    from agents.shield import ShieldedPolicy, YieldingShield
+
+    cfg = YieldingConfig() if scenario is None else replace(YieldingConfig(), **scenario_settings(scenario))
+    shield = YieldingShield(cfg if dt is None else replace(cfg, dt=float(dt)))
+    return ShieldedPolicy(ConstantAction(), shield, SHIELD_MAX_RESIDUAL, residual_offset=1.0)
 
 
 def policy_entry(name: str) -> PolicyEntry:

@@ -163,15 +163,22 @@ class YieldingShield:
         """(B,) the largest acceleration (m/s²) the envelope allows for `obs`; advances the rule's timers."""
         return self.limit_from_view(parse_observation(obs))
 
-    def apply(self, action: Any, obs: ObsLike, residual_scale: float = 0.0) -> tuple[np.ndarray, bool]:
+    def apply(
+        self, action: Any, obs: ObsLike, residual_scale: float = 0.0, residual_offset: float = 0.0
+    ) -> tuple[np.ndarray, bool]:
         """(shielded normalised action of shape (1,), whether the shield changed it) for one observation.
 
         With ``residual_scale = 0`` the action is the learned acceleration itself (normalised as the env's).
         With ``residual_scale = s > 0`` it is a residual on the rule: the requested acceleration is the rule's
         own plus ``s × action`` m/s², so an action of 0 drives exactly as `yielding` does, and the learned
-        part only has to find where to depart from it. Either way the envelope's limit caps the result.
+        part only has to find where to depart from it. ``residual_offset`` (residual only) shifts the
+        starting point: the residual asked for is ``offset + action``, clipped to [−1, 1], so with offset 1
+        an action of 0 asks for the most the envelope allows and the learned part finds where to hold back
+        (down to the rule itself at action −1). Either way the envelope's limit caps the result.
         """
         u = float(np.clip(np.asarray(action, dtype=np.float64).reshape(-1)[0], -1.0, 1.0))
+        if residual_scale > 0.0:
+            u = float(np.clip(residual_offset + u, -1.0, 1.0))
         rule, bound = self.rule_and_limit(parse_observation(obs))
         ego = self.config.ego
         if residual_scale > 0.0:
@@ -190,17 +197,25 @@ class ShieldedPolicy:
 
     uses_predictors = False
 
-    def __init__(self, learned: Policy, shield: YieldingShield, residual_scale: float = 0.0) -> None:
+    def __init__(
+        self,
+        learned: Policy,
+        shield: YieldingShield,
+        residual_scale: float = 0.0,
+        residual_offset: float = 0.0,
+    ) -> None:
         self.learned = learned
         self.shield = shield
         self.residual_scale = residual_scale
         """0: the learned action is the acceleration; > 0: a residual on the rule's (see `apply`)."""
+        self.residual_offset = residual_offset
+        """Added to the learned residual before clipping (see `apply`)."""
         self.interventions = 0
         """Steps in which the shield replaced the learned action (since the last reset)."""
 
     def __call__(self, obs: ObsLike) -> np.ndarray:
         """The learned action, replaced by the envelope's limit when above it."""
-        action, changed = self.shield.apply(self.learned(obs), obs, self.residual_scale)
+        action, changed = self.shield.apply(self.learned(obs), obs, self.residual_scale, self.residual_offset)
         self.interventions += int(changed)
         return action
 
@@ -220,11 +235,16 @@ class ShieldAction(gym.Wrapper):
     """
 
     def __init__(
-        self, env: gym.Env, make_config: Callable[[Any, float], YieldingConfig], residual_scale: float = 0.0
+        self,
+        env: gym.Env,
+        make_config: Callable[[Any, float], YieldingConfig],
+        residual_scale: float = 0.0,
+        residual_offset: float = 0.0,
     ) -> None:
         super().__init__(env)
         self.make_config = make_config
         self.residual_scale = residual_scale
+        self.residual_offset = residual_offset
         self.shield: YieldingShield | None = None
         self._obs: Any = None
 
@@ -240,7 +260,7 @@ class ShieldAction(gym.Wrapper):
         """Step with the shielded action; ``info['shield']`` says whether it was replaced."""
         if self.shield is None:
             raise RuntimeError("ShieldAction.step before reset")
-        safe, changed = self.shield.apply(action, self._obs, self.residual_scale)
+        safe, changed = self.shield.apply(action, self._obs, self.residual_scale, self.residual_offset)
         obs, reward, terminated, truncated, info = self.env.step(safe)
         self._obs = obs
         return obs, reward, terminated, truncated, {**info, "shield": 1.0 if changed else 0.0}

@@ -66,6 +66,9 @@ class Args:
     residual: float = 0.0
     """``shielded`` only: > 0 makes the action a residual on the rule's acceleration, this many m/s² per unit
     (0: the action is the acceleration itself)."""
+    residual_offset: float = 0.0
+    """``--residual`` only: the residual asked for is offset + action, clipped to [−1, 1]; 1 starts the
+    actor (action ≈ 0) at the most the shield's envelope allows, so it learns where holding back pays."""
     scenarios: tuple[str, ...] = ()
     """Scenarios drawn per reset (empty: every built-in one)."""
     n_envs: int = 4
@@ -124,6 +127,12 @@ def parse_args(argv: list[str] | None = None) -> Args:
         help="shielded: action = rule + RESIDUAL x action (m/s^2)",
     )
     p.add_argument(
+        "--residual-offset",
+        type=float,
+        default=d.residual_offset,
+        help="residual: request clip(OFFSET + action, -1, 1) (1: start at the envelope's maximum)",
+    )
+    p.add_argument(
         "--scenarios", default="", help="comma-separated scenarios drawn per reset (default: all built-in)"
     )
     p.add_argument("--n-envs", type=positive, default=d.n_envs, help="parallel envs")
@@ -159,12 +168,17 @@ def parse_args(argv: list[str] | None = None) -> Args:
         p.error(f"--gamma must be in (0, 1] and --learning-rate > 0, got {a.gamma!r}, {a.learning_rate!r}")
     if (a.residual and a.algo != "shielded") or not a.residual >= 0:
         p.error(f"--residual must be >= 0 and needs --algo shielded, got {a.residual!r} with {a.algo!r}")
+    if a.residual_offset and not a.residual:
+        p.error(f"--residual-offset needs --residual > 0, got offset {a.residual_offset!r}")
+    if not -1.0 <= a.residual_offset <= 1.0:
+        p.error(f"--residual-offset must be in [-1, 1], got {a.residual_offset!r}")
     if not a.cost_budget >= 0 or not a.lambda_lr >= 0:
         p.error(f"--cost-budget and --lambda-lr must be >= 0, got {a.cost_budget!r}, {a.lambda_lr!r}")
     if a.subproc and a.algo == "ppo_lagrangian":
         p.error("--subproc: the Lagrange multiplier is shared in-process; run ppo_lagrangian without it")
     return Args(
-        a.timesteps, a.algo, a.cost_budget, a.lambda_lr, a.residual, names, a.n_envs, a.subproc, a.n_steps,
+        a.timesteps, a.algo, a.cost_budget, a.lambda_lr, a.residual, a.residual_offset, names, a.n_envs,
+        a.subproc, a.n_steps,
         a.batch_size, a.learning_rate, a.gamma, a.time_reward,
         a.predictors, a.bc_steps, a.log_std_init, a.seed, a.eval_every, a.eval_episodes, a.out,
         not a.no_progress,
@@ -178,6 +192,7 @@ def make_env(
     multiplier: Any = None,
     residual: float = 0.0,
     time_reward: float | None = None,
+    residual_offset: float = 0.0,
 ) -> Any:
     """One training env: a scenario drawn per reset, episode metrics in `info`, optional predictors.
 
@@ -251,7 +266,10 @@ def make_env(
         from agents.shield import ShieldAction
 
         env = ShieldAction(
-            env, lambda scenario, dt: make_policy("yielding", scenario=scenario, dt=dt).config, residual
+            env,
+            lambda scenario, dt: make_policy("yielding", scenario=scenario, dt=dt).config,
+            residual,
+            residual_offset,
         )
     if algo == "ppo_lagrangian":
         from crossing_env.constrained import LagrangianReward
@@ -451,7 +469,13 @@ def main(argv: list[str] | None = None) -> int:
     multiplier = Multiplier(0.0) if args.algo == "ppo_lagrangian" else None
     fns = [
         lambda: make_env(
-            args.scenarios, args.predictors, args.algo, multiplier, args.residual, args.time_reward
+            args.scenarios,
+            args.predictors,
+            args.algo,
+            multiplier,
+            args.residual,
+            args.time_reward,
+            args.residual_offset,
         )
         for _ in range(args.n_envs)
     ]
@@ -483,10 +507,13 @@ def main(argv: list[str] | None = None) -> int:
     callbacks: list[Any] = [log.callback]
     if args.eval_every:
         callbacks.append(
-            EveryNTimesteps(args.eval_every, _Checkpoint(model, venv, args.out, shielded, args.residual))
+            EveryNTimesteps(
+                args.eval_every,
+                _Checkpoint(model, venv, args.out, shielded, args.residual, args.residual_offset),
+            )
         )
     t0 = time.perf_counter()
-    _save(model, venv, args.out / "step_0.zip", shielded, args.residual)
+    _save(model, venv, args.out / "step_0.zip", shielded, args.residual, args.residual_offset)
     try:
         model.learn(args.timesteps, callback=CallbackList(callbacks), progress_bar=args.progress)
     except KeyboardInterrupt:  # Ctrl-C stops training early; what was learnt is still saved and evaluated
@@ -499,7 +526,7 @@ def main(argv: list[str] | None = None) -> int:
         f" ({model.num_timesteps / train_s:.0f} steps/s), seed {args.seed},"
         f" {len(args.scenarios)} scenario(s){lam}"
     )
-    _save(model, venv, args.out / "model.zip", shielded, args.residual)
+    _save(model, venv, args.out / "model.zip", shielded, args.residual, args.residual_offset)
     plot_learning_curve(args.out / "episodes.csv", args.out / "learning_curve.png")
     print(
         f"saved {args.out}/model.zip (+ model.vecnormalize.npz, model.policy.npz), episodes.csv,"
@@ -516,23 +543,34 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def _save(model: Any, venv: Any, path: Path, shielded: bool, residual: float = 0.0) -> None:
+def _save(
+    model: Any, venv: Any, path: Path, shielded: bool, residual: float = 0.0, offset: float = 0.0
+) -> None:
     """``NAME.zip`` (SB3), ``NAME.vecnormalize.npz`` (statistics), ``NAME.policy.npz`` (`agents.mlp`)."""
     from agents.mlp import export_sb3
     from agents.sb3 import save_stats
 
     model.save(path)
     save_stats(venv, path.with_suffix(".vecnormalize.npz"))
-    export_sb3(model, venv, path.with_suffix(".policy.npz"), shielded=shielded, residual_scale=residual)
+    export_sb3(
+        model,
+        venv,
+        path.with_suffix(".policy.npz"),
+        shielded=shielded,
+        residual_scale=residual,
+        residual_offset=offset,
+    )
 
 
-def _Checkpoint(model: Any, venv: Any, out: Path, shielded: bool, residual: float = 0.0) -> Any:
+def _Checkpoint(
+    model: Any, venv: Any, out: Path, shielded: bool, residual: float = 0.0, offset: float = 0.0
+) -> Any:
     """Callback: saves ``step_N.zip`` + its statistics + its policy file at every call."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     class _Save(BaseCallback):
         def _on_step(self) -> bool:
-            _save(model, venv, out / f"step_{self.num_timesteps}.zip", shielded, residual)
+            _save(model, venv, out / f"step_{self.num_timesteps}.zip", shielded, residual, offset)
             return True
 
     return _Save()

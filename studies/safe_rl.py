@@ -16,7 +16,8 @@ The analysis writes, from the runs' ``episodes.csv`` and checkpoints:
 - **selection and evaluation**: each learner's seed with the best final policy on the selection episodes
   (fewest collisions, then best compliance, then lowest censored delay) is evaluated on `crossing-eval`'s
   default seeds, paired with `yielding` (same scenario and episode seed), with a bootstrap interval of the
-  paired delay difference.
+  paired delay difference; beside them ``shield_max``, the shielded learner's starting point (`yielding`
+  plus the full residual through the shield, not learned), so the table shows what learning adds to it.
 
 Everything measured goes to ``benchmarks/results/safe_rl.json``; the results registry renders its tables
 into ``docs/rl.md`` (``python -m benchmarks.results --render``).
@@ -46,10 +47,22 @@ RECIPE = (
 """Training settings shared by every run (plus ``--algo``, ``--seed``, ``--out`` and `LEARNER_RECIPE`)."""
 LEARNER_RECIPE = {
     "ppo_lagrangian": ("--learning-rate", "1e-4", "--bc-steps", "20000", "--log-std-init", "-1.5"),
-    "shielded": ("--learning-rate", "3e-4", "--residual", "2", "--log-std-init", "-1", "--time-reward", "-1"),
+    "shielded": (
+        "--learning-rate",
+        "3e-4",
+        "--residual",
+        "2",
+        "--residual-offset",
+        "1",
+        "--log-std-init",
+        "-1",
+        "--time-reward",
+        "-1",
+    ),
 }
 """Per learner: PPO-Lagrangian starts from a 20,000-step imitation of `yielding` (behaviour cloning); the
-shielded learner is a residual on the rule (action 0 = `yielding`, ±2 m/s² per unit), so it needs none.
+shielded learner is a residual on the rule (±2 m/s² per unit) offset by +1, so an untrained actor asks for
+the most the shield allows (envelope-max, `SHIELD_MAX`) and learns where holding back pays; it needs none.
 The shield carries its safety, so its training reward weighs time five times the env's default (−1 per
 second instead of −0.2: a second saved is worth as much as a second of near miss avoided) and it learns at
 SB3's default rate; both make the weak signal of a second gained count within 50,000 steps (docs/rl.md)."""
@@ -57,6 +70,9 @@ SELECTION_SEED = 777
 """Base seed of the selection and steps-to-safety episodes (`crossing-eval` defaults to 2024)."""
 EVALUATION_SEED = 2024
 """`crossing-eval`'s default base seed: the evaluation episodes."""
+SHIELD_MAX = "agents.registry:shield_max_policy"
+"""The envelope-max reference (`agents.registry.shield_max_policy`: `yielding` + the full residual through
+the shield, not learned): the shielded learner's starting point, evaluated beside it as ``shield_max``."""
 METRICS = ("return", "cost", "collision", "compliance", "censored_delay")
 
 
@@ -310,13 +326,12 @@ def analyse(runs: Path, figures: Path, episodes: int, check_episodes: int, worke
         chosen[algo] = best
         result["learners"][algo] = {"per_seed": per_seed, "chosen_seed": best}
 
-    specs = ["yielding"] + [
-        f"mlp:{(runs / a / f'seed_{chosen[a]}' / 'model.policy.npz').resolve()}" for a in ALGOS
-    ]
+    learned = [f"mlp:{(runs / a / f'seed_{chosen[a]}' / 'model.policy.npz').resolve()}" for a in ALGOS]
+    specs = ["yielding", *learned, SHIELD_MAX]
     records = _evaluate(specs, scenarios, episodes, EVALUATION_SEED, workers)
     by_spec = {s: [r for r in records if r.task.policy == s] for s in specs}
     evaluation = {"yielding": _scores(by_spec["yielding"])}
-    for algo, spec in zip(ALGOS, specs[1:], strict=True):
+    for algo, spec in zip((*ALGOS, "shield_max"), specs[1:], strict=True):
         evaluation[algo] = _scores(by_spec[spec])
         evaluation[algo]["delay_vs_yielding"] = paired_delay_difference(by_spec[spec], by_spec["yielding"])
     result["evaluation"] = evaluation
@@ -334,8 +349,14 @@ def _evaluation_rows(data: dict[str, Any]) -> list[str]:
         " delay vs yielding [95 % CI] |",
         "|---|---|---|---|---|---|",
     ]
-    shipped = {"ppo_lagrangian": "ppo_lagrangian", "shielded": "ppo_shielded"}  # `agents.SHIPPED_POLICIES`
-    for name in ("yielding", *ALGOS):
+    shipped = {  # `agents.SHIPPED_POLICIES`, and the reference that is not learned
+        "ppo_lagrangian": "ppo_lagrangian",
+        "shielded": "ppo_shielded",
+        "shield_max": "shield_max (not learned: the shielded learner's start, yielding + full residual)",
+    }
+    for name in ("yielding", *ALGOS, "shield_max"):
+        if name not in ev:  # results measured before the reference row was added
+            continue
         e = ev[name]
         change = e.get("delay_vs_yielding")
         cell = (

@@ -65,3 +65,53 @@ def test_a_pickled_or_foreign_file_is_refused_with_its_name(tmp_path):
     np.savez(other, format=np.array("something-else"))
     with pytest.raises(PolicyFileError, match=r"other\.npz.*'format'"):
         load_mlp(other)
+
+
+def test_an_exported_residual_offset_runs_in_crossing_eval_as_trained(trained, tmp_path):
+    """The registry's shielded policy from a file with ``residual_offset`` asks for the rule's acceleration
+    plus scale × clip(offset + SB3's greedy action), capped by the envelope, at every step."""
+    from dataclasses import replace
+
+    from agents.config import YieldingConfig
+    from agents.registry import mlp_policy, scenario_settings
+    from agents.shield import YieldingShield
+    from agents.view import parse_observation
+    from crossing_env.env import acceleration_to_action
+
+    model, venv, _ = trained
+    path = export_sb3(
+        model, venv, tmp_path / "offset.npz", shielded=True, residual_scale=2.0, residual_offset=1.0
+    )
+    assert load_mlp(path).residual_offset == 1.0
+    env = gym.make(ENV_ID, scenario="busy_zebra")
+    obs, _ = env.reset(seed=5)
+    base = env.unwrapped
+    policy = mlp_policy(path, base.scenario, base.config.dt)
+    policy.reset(5)
+    cfg = replace(YieldingConfig(), **scenario_settings(base.scenario), dt=base.config.dt)
+    reference = YieldingShield(cfg)
+    requests = []
+    for _ in range(120):
+        theirs, _ = model.predict(
+            venv.normalize_obs({k: obs[k][None] for k in BASE_KEYS}), deterministic=True
+        )
+        residual = float(np.clip(1.0 + np.clip(theirs[0, 0], -1, 1), -1, 1))
+        rule, bound = reference.rule_and_limit(parse_observation(obs))
+        wanted = np.clip(rule[0] + 2.0 * residual, -cfg.ego.max_deceleration, cfg.ego.max_acceleration)
+        expected = acceleration_to_action(np.array([min(wanted, bound[0])]), cfg.ego).reshape(1)
+        mine = policy(obs)
+        np.testing.assert_allclose(mine, expected, atol=1e-5)
+        requests.append(residual)
+        obs, _, terminated, truncated, _ = env.step(mine)
+        if terminated or truncated:
+            break
+    assert min(requests) < 1.0  # the actor's own action mattered somewhere, not only the offset
+
+
+def test_a_file_without_an_offset_reads_as_no_offset(trained, tmp_path):
+    _, _, path = trained
+    with np.load(path, allow_pickle=False) as data:
+        arrays = {k: data[k] for k in data.files if k != "residual_offset"}
+    old = tmp_path / "old.npz"
+    np.savez(old, **arrays)
+    assert load_mlp(old).residual_offset == 0.0

@@ -247,3 +247,25 @@ def test_without_the_readiness_limit_the_learner_may_outpace_the_rule_near_someo
     assert rule > 0.0  # the rule itself still speeds up (nobody owed a stop yet)
     assert ready == pytest.approx(rule, abs=1e-4)
     assert free == pytest.approx(CONFIG.ego.max_acceleration, abs=1e-4)
+
+
+def test_offset_one_at_action_zero_is_the_full_residual_and_minus_one_is_the_rule():
+    """``residual_offset`` shifts the residual: offset 1 with action 0 asks for the full +1 (the
+    envelope-max start of the shielded learner, `shield_max_policy`), with action −1 for the rule itself."""
+    from agents.registry import shield_max_policy
+
+    env = gym.make(ENV_ID, scenario="busy_zebra")
+    obs, _ = env.reset(seed=2)
+    a, b, c, d = (YieldingShield(CONFIG) for _ in range(4))
+    reference = shield_max_policy(SCENARIO, dt=CONFIG.dt)  # builds CONFIG's shield itself
+    for _ in range(200):
+        full, _ = a.apply(np.ones(1, dtype=np.float32), obs, residual_scale=2.0)
+        start, _ = b.apply(np.zeros(1, dtype=np.float32), obs, residual_scale=2.0, residual_offset=1.0)
+        back, _ = c.apply(-np.ones(1, dtype=np.float32), obs, residual_scale=2.0, residual_offset=1.0)
+        rule, _ = d.apply(np.zeros(1, dtype=np.float32), obs, residual_scale=2.0)
+        np.testing.assert_array_equal(start, full)
+        np.testing.assert_array_equal(reference(obs), full)
+        np.testing.assert_array_equal(back, rule)
+        obs, _, terminated, truncated, _ = env.step(start)
+        if terminated or truncated:
+            break
