@@ -208,6 +208,17 @@ def test_a_pedestrian_at_the_kerb_is_always_given_a_comfortable_stop_before_the_
     velocity=st.tuples(st.floats(-1.5, 1.5), st.floats(-1.5, 1.5)),
     requested=st.floats(-1.0, 1.0),
 )
+# Found by random search (not by the derandomised CI examples): on the profile, the rule's stop braking for
+# the readiness target asked for more than the profile allows.
+@example(
+    profile_share=1.0,
+    to_stop=38.0,
+    along=0.0,
+    kerb_gap=3.0,
+    far_side=False,
+    velocity=(0.0, 0.0),
+    requested=1.0,
+)
 def test_faster_than_the_rule_only_where_a_stop_stays_comfortable(
     profile_share, to_stop, along, kerb_gap, far_side, velocity, requested
 ):
