@@ -50,17 +50,14 @@ def behaviour_fingerprint() -> str:
     world, the predictors, a fingerprint policy or the metrics change what an episode gives.
     """
     from crossing_eval.tasks import episode_seed
-    from rollout import RolloutSpec, build, run_episode
+    from rollout import RolloutSpec, run_spec
     from scenarios import list_scenarios
 
     digest = hashlib.sha256()
     for scenario in sorted(list_scenarios()):
         for policy in FINGERPRINT_POLICIES:
-            run = build(RolloutSpec(scenario=scenario, policy=policy))
-            episode = run_episode(
-                run.env, episode_seed(2024, scenario, 0), policy=run.policy, max_steps=FINGERPRINT_STEPS
-            )
-            run.env.close()
+            spec = RolloutSpec(scenario=scenario, policy=policy)
+            episode = run_spec(spec, episode_seed(2024, scenario, 0), FINGERPRINT_STEPS)
             digest.update(f"{scenario}/{policy}".encode())
             digest.update(json.dumps(episode.actions).encode())
             digest.update(json.dumps(episode.result, sort_keys=True, default=str).encode())
@@ -80,17 +77,14 @@ def learned_fingerprint() -> str:
     """
     from agents.registry import SHIPPED_POLICIES
     from crossing_eval.tasks import episode_seed
-    from rollout import RolloutSpec, build, run_episode
+    from rollout import RolloutSpec, run_spec
 
     digest = hashlib.sha256(behaviour_fingerprint().encode())
     for name in sorted(SHIPPED_POLICIES):
         digest.update(SHIPPED_POLICIES[name].read_bytes())
         for scenario in LEARNED_FINGERPRINT_SCENARIOS:
-            run = build(RolloutSpec(scenario=scenario, policy=name))
-            episode = run_episode(
-                run.env, episode_seed(2024, scenario, 0), policy=run.policy, max_steps=FINGERPRINT_STEPS
-            )
-            run.env.close()
+            spec = RolloutSpec(scenario=scenario, policy=name)
+            episode = run_spec(spec, episode_seed(2024, scenario, 0), FINGERPRINT_STEPS)
             digest.update(f"{scenario}/{name}".encode())
             digest.update(json.dumps(episode.actions).encode())
     return digest.hexdigest()[:16]

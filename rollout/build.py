@@ -17,6 +17,7 @@ import gymnasium as gym
 
 import crossing_env  # registers the env id
 from agents import Policy, make_policy, policy_uses_predictors
+from rollout.episode import Episode, run_episode
 from rollout.wrappers import DEFAULT_INTENTION, DEFAULT_PREDICTOR, NONE, wrap
 from scenarios.config import EnvConfig, ScenarioConfig
 
@@ -110,3 +111,12 @@ def build(spec: RolloutSpec) -> Rollout:
         env.close()
         raise
     return Rollout(env, policy, intention, predictor, used)
+
+
+def run_spec(spec: RolloutSpec, seed: int, max_steps: int | None = None) -> Episode:
+    """Build `spec`, run one episode of it from `seed` and close the env: a one-off rollout (fingerprints)."""
+    run = build(spec)
+    try:
+        return run_episode(run.env, seed, policy=run.policy, max_steps=max_steps)
+    finally:
+        run.env.close()

@@ -205,7 +205,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Sweep every model and write the chosen bounds into the shipped weights."""
     from crossing_eval.runners import pool_start_method
     from predictors.learned_intent_train import write_weights
-    from predictors.learned_intent_weights import WEIGHTS_PATH, read_weights
+    from predictors.learned_intent_weights import MANIFEST_PATH, WEIGHTS_PATH, read_weights
     from scenarios import list_scenarios
 
     parser = argparse.ArgumentParser(
@@ -225,7 +225,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.error(
             f"--episodes and --confirm-episodes must be >= 1, got {args.episodes}, {args.confirm_episodes}"
         )
-    weights = read_weights(args.weights, args.weights.with_name("learned_intent.sha256.json"))
+    weights = read_weights(args.weights, args.weights.with_name(MANIFEST_PATH.name))
     scenarios = sorted(list_scenarios())
     start = time.perf_counter()
     release = weights["release"]

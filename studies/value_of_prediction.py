@@ -60,13 +60,10 @@ def _probe_digest(intention: str, predictor: str) -> str:
     """Hash of a short `predictive_yielding` rollout on one zebra under one pair of wrappers."""
     from crossing_eval.tasks import episode_seed
     from predictors.learned_intent_weights import WEIGHTS_PATH
-    from rollout import RolloutSpec, build, run_episode
+    from rollout import RolloutSpec, run_spec
 
-    seed = episode_seed(BASE_SEED, "zebra_case1", 0)
     spec = RolloutSpec(scenario="zebra_case1", policy=POLICY, intention=intention, predictor=predictor)
-    run = build(spec)
-    episode = run_episode(run.env, seed, policy=run.policy, max_steps=FINGERPRINT_STEPS)
-    run.env.close()
+    episode = run_spec(spec, episode_seed(BASE_SEED, "zebra_case1", 0), FINGERPRINT_STEPS)
     digest = hashlib.sha256(f"{intention}/{predictor}".encode())
     if intention in WEIGHTS_INTENTIONS:
         # A short rollout on one zebra may never meet the situation a weights change moves (a new release
