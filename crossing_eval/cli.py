@@ -9,6 +9,7 @@ identical whatever ``--workers`` or ``--backend`` (see `crossing_eval.tasks`).
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import sys
 import time
@@ -304,6 +305,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     return code
 
 
+def console_main() -> None:
+    """The `crossing-eval` command: `main`, then exit without the interpreter's last garbage collection.
+
+    By the end of a run this process holds the kernels, models and envs: sweeping them at exit took about
+    half a second, a tenth of a smoke run. `gc.freeze` takes them out of that sweep, which only looks for
+    reference cycles to free in a process about to end; the outputs are written and closed before.
+    """
+    code = main()
+    gc.freeze()
+    sys.exit(code)
+
+
 def _tasks(args: argparse.Namespace) -> list[EpisodeTask]:
     """The episodes of a plain run or of a `--grid`."""
     if args.grid is not None:
@@ -395,4 +408,4 @@ def _run(
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    console_main()

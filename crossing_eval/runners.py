@@ -6,6 +6,7 @@ returned, so the results never depend on ``workers`` or the backend.
 
 from __future__ import annotations
 
+import gc
 import itertools
 import multiprocessing
 import os
@@ -23,12 +24,13 @@ from typing import Any
 
 from tqdm import tqdm
 
-from crossing_eval.tasks import EpisodeRecord, EpisodeTask, run_episode
+from crossing_eval.tasks import EpisodeRecord, EpisodeTask, heaviest_first, run_episode, warm_up
 
 IN_FLIGHT_PER_WORKER = 2
 """Tasks submitted at a time per worker (lazy submission keeps memory flat whatever ``--episodes`` is)."""
 FIRST_EPISODE_LOOKAHEAD = 64
-"""Tasks searched for one with the prediction wrappers, to run first in this process before forking."""
+"""Tasks searched for one with the prediction wrappers, to warm up this process with before forking (and
+handed to the workers slowest first)."""
 DEFAULT_RAY_TIMEOUT = 30.0
 """Seconds to wait for a Ray cluster at ``--address`` before giving up with a message."""
 
@@ -189,14 +191,13 @@ def _run_local(
     # fork only while torch is not imported here (`pool_start_method`); the records are the same either way.
     method = pool_start_method()
     if method == "fork":
-        # One episode runs here first, one with the prediction wrappers if any comes soon: it loads (on a
-        # fresh install: compiles) the kernels once, and every forked worker starts with them (instead of
-        # each loading them again, about 1 s of CPU apiece, or compiling them again, tens of seconds).
-        head = list(itertools.islice(todo, FIRST_EPISODE_LOOKAHEAD))
+        # The first steps of an episode run here first, one with the prediction wrappers if any comes
+        # soon: they load (on a fresh install: compile) the kernels once, and every forked worker starts
+        # with them (instead of each loading them again, about 1 s of CPU apiece, or compiling them again,
+        # tens of seconds). The episodes of the look-ahead then go to the workers, the slowest first.
+        head = heaviest_first(list(itertools.islice(todo, FIRST_EPISODE_LOOKAHEAD)))
         if head:
-            wrapped = (i for i, t in enumerate(head) if t.predictor != "none" or t.intention != "none")
-            records.append(run_episode(head.pop(next(wrapped, 0))))
-            progress()
+            warm_up(head[0])
         todo = itertools.chain(head, todo)
     pool = ProcessPoolExecutor(
         max_workers=workers,
@@ -207,8 +208,15 @@ def _run_local(
         in_flight: set[Future[EpisodeRecord]] = set()
         # Lazy submission: at most `limit` tasks wait in the pool, so memory stays flat however many there
         # are; records are sorted afterwards, so the order of completion never shows in the results.
-        for t in itertools.islice(todo, limit):
-            in_flight.add(pool.submit(run_episode_guarded, t))
+        # The first submissions fork the workers. The objects that exist then stay out of the collector's
+        # sweeps in the workers, so that those do not copy the shared pages they sit in (what `gc.freeze`
+        # is documented for); this process collects them again afterwards.
+        gc.freeze()
+        try:
+            for t in itertools.islice(todo, limit):
+                in_flight.add(pool.submit(run_episode_guarded, t))
+        finally:
+            gc.unfreeze()
         if while_waiting is not None:
             while_waiting()
         while in_flight:

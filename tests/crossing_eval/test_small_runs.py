@@ -90,3 +90,36 @@ def test_in_process_records_equal_the_pool_records(monkeypatch: pytest.MonkeyPat
     assert [r.result for r in here] == [r.result for r in pool]
     assert [r.actions for r in here] == [r.actions for r in pool]
     assert [r.episode_return for r in here] == [r.episode_return for r in pool]
+
+
+def test_a_warm_up_leaves_no_trace_in_the_next_episode(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The warm-up before forking runs the first steps of an episode on the env the workers then reuse."""
+    monkeypatch.setattr(tasks_module, "_ENV_CACHE", {})
+    first, second = make_tasks(["zebra_case1"], ["yielding"], 2, 2024)
+    fresh = tasks_module.run_episode(second)
+    tasks_module.warm_up(first)
+    after = tasks_module.run_episode(second)
+    assert (after.result, after.actions, after.episode_return) == (
+        fresh.result,
+        fresh.actions,
+        fresh.episode_return,
+    )
+
+
+def test_the_slowest_tasks_go_first_and_the_rest_keep_their_order() -> None:
+    tasks = make_tasks(["zebra_case1"], ["constant_speed", "predictive_yielding", "ttc_brake"], 2, 7)
+    ordered = tasks_module.heaviest_first(tasks)
+    assert [t.policy for t in ordered] == ["predictive_yielding"] * 2 + ["constant_speed"] * 2 + [
+        "ttc_brake"
+    ] * 2
+    assert sorted(ordered, key=lambda t: (t.policy, t.episode)) == tasks
+
+
+def test_the_command_passes_main_s_exit_status_on() -> None:
+    proc = subprocess.run(
+        [sys.executable, "-m", "crossing_eval.cli", "--scenarios", "no_such_scenario"],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
+    assert proc.returncode == 2 and "unknown scenario 'no_such_scenario'" in proc.stderr
