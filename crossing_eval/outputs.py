@@ -23,7 +23,9 @@ import csv
 import io
 import json
 import math
+import multiprocessing
 import re
+import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -177,12 +179,34 @@ def _plot(
         ("safety_vs_efficiency.png", lambda ax: _draw_safety_vs_efficiency(ax, summary, names)),
         ("min_ttc.png", lambda ax: _draw_min_ttc(ax, records, names)),
     ]
-    for file_name, draw in plots:
+
+    def draw_and_save(file_name: str, draw: Callable[[Axes], None]) -> None:
         fig, ax = plt.subplots(figsize=(9.0, 4.8))
         draw(ax)
         fig.tight_layout()
         _save_fig(fig, out / file_name)
         plt.close(fig)
+
+    # Each plot after the first is drawn in a forked child while this process draws the first: drawing
+    # (text layout, rasterising) is most of the time after the last episode. Not after torch has been
+    # imported (a forked child of a process that ran torch ops can hang) nor where fork is unavailable.
+    children = []
+    if "torch" not in sys.modules and "fork" in multiprocessing.get_all_start_methods():
+        fork = multiprocessing.get_context("fork")
+        for file_name, draw in plots[1:]:
+            child = fork.Process(target=draw_and_save, args=(file_name, draw), name=f"plot {file_name}")
+            child.start()
+            children.append((file_name, child))
+        plots = plots[:1]
+    try:
+        for file_name, draw in plots:
+            draw_and_save(file_name, draw)
+    finally:
+        for _, child in children:
+            child.join()
+    for file_name, child in children:
+        if child.exitcode != 0:
+            raise RuntimeError(f"drawing {file_name} failed (exit status {child.exitcode} of its process)")
 
 
 def dodge_offsets(

@@ -173,3 +173,25 @@ def test_plots_have_no_point_labels_and_identical_curves_are_named():
     assert len({line.get_marker() for line in lines}) == len(names)
     assert lines[0].get_linewidth() > lines[1].get_linewidth()  # the earlier curve shows around the later
     plt.close(fig)
+
+
+def test_plots_drawn_in_a_child_process_are_written_and_a_failing_one_stops_the_outputs(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    import crossing_eval.outputs as outputs
+
+    records = _records(RECORDS)
+    summary = summarise(records)
+    outputs._plot(records, summary, list(RECORDS), tmp_path)
+    pngs = sorted(p.name for p in tmp_path.glob("*.png"))
+    assert pngs == ["min_ttc.png", "safety_vs_efficiency.png"]
+    assert all((tmp_path / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for name in pngs)
+
+    def broken(*args: object) -> None:
+        raise ValueError("cannot draw")
+
+    monkeypatch.setattr(outputs, "_draw_min_ttc", broken)  # the plot a forked child draws
+    (tmp_path / "again").mkdir()
+    with pytest.raises(RuntimeError, match=r"drawing min_ttc\.png failed"):
+        outputs._plot(records, summary, list(RECORDS), tmp_path / "again")
+    assert not (tmp_path / "again" / "min_ttc.png").exists()
