@@ -8,9 +8,10 @@ Everything here is importable at module level, so process-pool workers can unpic
 
 from __future__ import annotations
 
+import multiprocessing
 import sys
 import zlib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -133,14 +134,35 @@ def warm_up(task: EpisodeTask, steps: int = WARM_UP_STEPS) -> None:
     """Run the first `steps` steps of `task` and throw them away, to load the kernels in this process.
 
     It loads (on a fresh install: compiles) the numba kernels and the models here, so that workers forked
-    from this process start with them.
+    from this process start with them. Cheaper than running the whole episode here first (a fraction of
+    the time of a wrapped episode), and the episode itself then runs in a worker beside the others.
+    Nothing carries over: every episode starts with `env.reset(seed)` and a fresh policy.
 
-    Cheaper than running the whole episode here first (a third of the time of a wrapped episode), and the
-    episode itself then runs in a worker beside the others. Nothing carries over: every episode starts with
-    `env.reset(seed)` and a fresh policy.
+    On a fresh install the trajectory predictor's kernel, the largest, compiles in a forked child while
+    the env's kernels compile here (the first steps without the wrappers); both land in numba's on-disk
+    cache, and the wrapped steps then load it. Only where fork is safe (no torch imported here).
     """
     env, _ = _cached_env(task)
+    aside = _kernel_to_compile(env)
+    if aside is not None and "torch" not in sys.modules and "fork" in multiprocessing.get_all_start_methods():
+        child = multiprocessing.get_context("fork").Process(target=aside, name="compile predictor kernel")
+        child.start()
+        try:
+            plain, _ = cached_env(task.scenario)
+            rollout.run_episode(plain, task.seed, policy=build_policy(task.policy, plain), max_steps=steps)
+        finally:
+            child.join()  # whatever it did, the wrapped steps below compile what is still missing
     rollout.run_episode(env, task.seed, policy=build_policy(task.policy, env), max_steps=steps)
+
+
+def _kernel_to_compile(env: Any) -> Callable[[], None] | None:
+    """The call of the first wrapper in `env`'s chain that has an uncompiled kernel (see `warm_up`)."""
+    while env is not None:
+        method = getattr(type(env), "kernel_to_compile", None)
+        if method is not None:
+            return method(env)
+        env = getattr(env, "env", None)
+    return None
 
 
 def heaviest_first(tasks: Sequence[EpisodeTask]) -> list[EpisodeTask]:

@@ -285,6 +285,23 @@ class FastPredictor:
         """``(N, 12, 2)`` most-likely future of ``obs (N, 8, 2)``, one window, via the compiled kernel."""
         return _rollout_kernel(np.ascontiguousarray(obs, np.float32), *self._kernel_args)
 
+    def compile_kernel(self) -> None:
+        """Compile (or load) the kernel for this predictor's arguments: one prediction of a still window."""
+        self.predict(np.zeros((2, OBS_LEN, 2), np.float32))
+
+
+def kernel_is_cached() -> bool:
+    """Whether numba's on-disk cache holds a compiled `_rollout_kernel` for this source file.
+
+    Read from numba's cache index (a private part of numba); if that ever fails, the answer is True, so
+    that nothing is compiled aside (`crossing_eval.tasks.warm_up`) and the kernel compiles where it is
+    first called, as it always may.
+    """
+    try:
+        return bool(_rollout_kernel._cache._cache_file._load_index())
+    except Exception:
+        return True
+
 
 KERNEL_SUFFIX = ".kernel.npz"
 """Suffix replacing ``.pt`` in the name of a checkpoint's kernel file."""

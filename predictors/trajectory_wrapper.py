@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import os
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -51,7 +52,7 @@ from crossing_env.observation import (
 )
 from predictors.checkpoints import WEIGHTS_DIR, load_model
 from predictors.constants import MODEL_KINDS, OBS_LEN, PRED_LEN
-from predictors.fast_inference import FastPredictor, load_kernel_file
+from predictors.fast_inference import FastPredictor, kernel_is_cached, load_kernel_file
 
 if TYPE_CHECKING:
     import torch
@@ -191,6 +192,17 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
         """Calls served from the translation cache (see module docstring)."""
         self.cache_misses = 0
         """Calls that ran the predictor."""
+
+    def kernel_to_compile(self) -> Callable[[], None] | None:
+        """A call that compiles this wrapper's predictor kernel, where numba's on-disk cache lacks it.
+
+        None where the kernel is cached or the predictor has none (CVM, the oracle). The kernel is the
+        largest of a run (seconds to compile): `crossing_eval.tasks.warm_up` compiles it in a second
+        process while the env's kernels compile in the first.
+        """
+        if self._fast is None or kernel_is_cached():
+            return None
+        return self._fast.compile_kernel
 
     def reset(
         self, *, seed: int | None = None, options: dict[str, Any] | None = None

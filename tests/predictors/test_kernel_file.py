@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import os
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +24,7 @@ from predictors.trajectory_wrapper import TrajectoryPrediction
 from tests.predictors.test_wrapper import FakePedEnv
 
 SHIPPED = WEIGHTS_DIR / "s-cgru_all.pt"
+REPO = Path(__file__).resolve().parents[2]
 
 
 def _windows(n: int, seed: int) -> np.ndarray:
@@ -105,3 +109,30 @@ def test_save_kernel_file_round_trips(tmp_path: Path, monkeypatch: pytest.Monkey
     assert fast is not None
     obs = _windows(6, 4)
     assert np.array_equal(fast.predict(obs), FastPredictor(load_model(pt)).predict(obs))
+
+
+COMPILE_ASIDE = """
+from predictors.fast_inference import kernel_is_cached
+from predictors.trajectory_wrapper import TrajectoryPrediction
+from tests.predictors.test_wrapper import FakePedEnv
+wrapper = TrajectoryPrediction(FakePedEnv(), model="s-cgru")
+assert not kernel_is_cached(), "the cache folder was not empty"
+compile_kernel = wrapper.kernel_to_compile()
+assert compile_kernel is not None, "nothing to compile on an empty cache"
+compile_kernel()
+assert kernel_is_cached(), "the compiled kernel is not in the cache"
+assert wrapper.kernel_to_compile() is None, "a cached kernel is offered for compiling again"
+"""
+
+
+def test_the_predictor_kernel_is_offered_for_compiling_only_while_it_is_not_cached(tmp_path: Path) -> None:
+    """`crossing_eval.tasks.warm_up` compiles it aside on a fresh install, never again once cached."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
+    proc = subprocess.run(
+        [sys.executable, "-c", COMPILE_ASIDE], env=env, cwd=REPO, capture_output=True, text=True
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+
+
+def test_the_cvm_has_no_kernel_to_compile() -> None:
+    assert TrajectoryPrediction(FakePedEnv(), model="cvm").kernel_to_compile() is None
