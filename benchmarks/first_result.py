@@ -121,6 +121,19 @@ def main() -> None:
                 f" {BASELINE_EPISODES_PER_S} of issue 26 (target >= 2x), process {wall:.0f} s"
             )
         print(line)
+    if "peer" in trees:
+        ratios = [f"warm smoke {_ratio(warm)}"]
+        if cold["peer"]:
+            ratios.append(f"cold smoke {_ratio(cold)}")
+        if len(rates) == 2:
+            speed_up = rates["this tree"][0] / rates["peer"][0]
+            ratios.append(f"default table {speed_up:.2f}x the peer's episodes/s")
+        print(f"  this tree against the peer in the same run: {'; '.join(ratios)}")
+
+
+def _ratio(times: dict[str, list[float]]) -> str:
+    """This tree's median wall time as a fraction of the peer's (below 1: faster)."""
+    return f"{statistics.median(times['this tree']) / statistics.median(times['peer']):.2f}x the peer's time"
 
 
 if __name__ == "__main__":

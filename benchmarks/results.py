@@ -326,9 +326,27 @@ def _render_predictor_speed(data: dict[str, Any]) -> str:
     return _script_block(data, "predictor_speed", timing)
 
 
+FIRST_RESULT_PEER = "a46388878c983527f029739f111404d37662aec9"
+"""The commit before the third round of issue 26's speed work: `first_result` runs it interleaved as the
+peer, so that the gain is measured against it in one run (the machines' speed moves between runs)."""
+
+
 def _measure_first_result() -> dict[str, Any]:
-    """`python benchmarks/first_result.py` (defaults: 3 warm and 1 cold smoke run, the default table)."""
-    return _script_report("first_result.py")
+    """`python benchmarks/first_result.py --peer DIR` (3 warm and 1 cold smoke run and the default table of
+    this tree and of `FIRST_RESULT_PEER`, checked out into a temporary git worktree and removed after)."""
+    with tempfile.TemporaryDirectory(prefix="first-result-peer-") as tmp:
+        peer = Path(tmp) / "peer"
+        git = ["git", "-C", str(REPO), "worktree"]
+        add = [*git, "add", "--detach", str(peer), FIRST_RESULT_PEER]
+        subprocess.run(add, check=True, capture_output=True)
+        try:
+            data = _script_report("first_result.py", "--peer", str(peer))
+        finally:
+            subprocess.run([*git, "remove", "--force", str(peer)], check=False, capture_output=True)
+    data["command"] = f"python benchmarks/first_result.py --peer <checkout of {FIRST_RESULT_PEER[:12]}>"
+    data["output"] = data["output"].replace(str(peer), "PEER")
+    data["defaults"] = False
+    return data
 
 
 def _render_first_result(data: dict[str, Any]) -> str:
@@ -337,7 +355,8 @@ def _render_first_result(data: dict[str, Any]) -> str:
 
 
 def _render_first_result_summary(data: dict[str, Any]) -> str:
-    line = next((x.strip() for x in data["output"].splitlines() if x.strip().startswith("this tree")), "")
+    summary = data["output"].split("\nsummary", 1)[-1].splitlines()[1:]
+    line = "\n".join(x.strip() for x in summary if x.strip())
     return (
         f"Measured by `{data['command']}` on commit `{data['commit'][:12]}` (2 cores; rendered from"
         f" `benchmarks/results/first_result.json`, details in [docs/benchmarks.md](docs/benchmarks.md)):\n\n"
