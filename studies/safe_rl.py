@@ -11,8 +11,9 @@ The analysis writes, from the runs' ``episodes.csv`` and checkpoints:
   yield compliance and censored delay of the training episodes against env steps and wall-clock seconds, in
   bins; per bin the mean over seeds and a 95 % t-interval (`scipy.stats.t`) across the seeds' bin means;
 - **steps to safety** per scenario: for each checkpoint (``step_N.policy.npz``) the greedy policy on
-  `SELECTION_SEED` episodes (seeds `crossing-eval` does not use) beside `yielding` on the same episodes; the
-  first N at which it has no collision and at least `yielding`'s yield compliance there;
+  `SELECTION_SEED` episodes (45 per scenario, ``--safety-episodes``; seeds `crossing-eval` does not use)
+  beside `yielding` on the same episodes; the first N at which it has no more collisions than `yielding`
+  and at least its yield compliance there;
 - **selection and evaluation**: each learner's seed with the best final policy on the selection episodes
   (fewest collisions, then best compliance, then lowest censored delay) is evaluated on `crossing-eval`'s
   default seeds, paired with `yielding` (same scenario and episode seed), with a bootstrap interval of the
@@ -242,17 +243,22 @@ def _scores(records: list[Any]) -> dict[str, float]:
 
 def steps_to_safety(runs: Path, algo: str, seed: int, scenarios: list[str], episodes: int, workers: int,
                     reference: dict[str, dict[str, float]]) -> dict[str, int | None]:  # fmt: skip
-    """Per scenario: the first checkpoint step whose greedy policy matches `yielding`'s safety (or None)."""
+    """Per scenario: the first checkpoint step whose greedy policy matches `yielding`'s safety (or None).
+
+    Checkpoints are tried in order, each on the scenarios not yet reached only (on `episodes` selection
+    episodes per scenario), so a learner that is safe from the start costs one checkpoint.
+    """
     folder = runs / algo / f"seed_{seed}"
     steps = sorted(int(p.name.split("_")[1].split(".")[0]) for p in folder.glob("step_*.policy.npz"))
-    specs = [f"mlp:{(folder / f'step_{n}.policy.npz').resolve()}" for n in steps]
-    records = _evaluate(specs, scenarios, episodes, SELECTION_SEED, workers)
     first: dict[str, int | None] = {s: None for s in scenarios}
-    for n, spec in zip(steps, specs, strict=True):
-        for s in scenarios:
-            if first[s] is not None:
-                continue
-            sc = _scores([r for r in records if r.task.policy == spec and r.task.scenario == s])
+    for n in steps:
+        todo = [s for s in scenarios if first[s] is None]
+        if not todo:
+            break
+        spec = f"mlp:{(folder / f'step_{n}.policy.npz').resolve()}"
+        records = _evaluate([spec], todo, episodes, SELECTION_SEED, workers)
+        for s in todo:
+            sc = _scores([r for r in records if r.task.scenario == s])
             ref = reference[s]
             ok_compliance = np.isnan(ref["compliance"]) or sc["compliance"] >= ref["compliance"] - 1e-9
             if sc["collisions"] <= ref["collisions"] and ok_compliance:
@@ -285,7 +291,9 @@ def paired_delay_difference(a: list[Any], b: list[Any], rng_seed: int = 0) -> di
     }
 
 
-def analyse(runs: Path, figures: Path, episodes: int, check_episodes: int, workers: int) -> dict[str, Any]:
+def analyse(
+    runs: Path, figures: Path, episodes: int, check_episodes: int, workers: int, safety_episodes: int
+) -> dict[str, Any]:
     """Curves, steps to safety, selection and the paired evaluation (see the module docstring)."""
     from scenarios import list_scenarios
 
@@ -299,13 +307,14 @@ def analyse(runs: Path, figures: Path, episodes: int, check_episodes: int, worke
     plot_curves(rows, figures / "rl_curves.png")
 
     # Yielding on the selection episodes: the safety reference of steps-to-safety.
-    yield_sel = _evaluate(["yielding"], scenarios, check_episodes, SELECTION_SEED, workers)
+    yield_sel = _evaluate(["yielding"], scenarios, safety_episodes, SELECTION_SEED, workers)
     reference = {s: _scores([r for r in yield_sel if r.task.scenario == s]) for s in scenarios}
     result: dict[str, Any] = {
         "recipe": list(RECIPE),
         "learner_recipe": {k: list(v) for k, v in LEARNER_RECIPE.items()},
         "seeds": list(SEEDS),
         "check_episodes": check_episodes,
+        "safety_episodes": safety_episodes,
         "evaluation_episodes": episodes,
         "learners": {},
     }
@@ -313,7 +322,7 @@ def analyse(runs: Path, figures: Path, episodes: int, check_episodes: int, worke
     for algo in ALGOS:
         per_seed = {}
         for seed in SEEDS:
-            first = steps_to_safety(runs, algo, seed, scenarios, check_episodes, workers, reference)
+            first = steps_to_safety(runs, algo, seed, scenarios, safety_episodes, workers, reference)
             final = f"mlp:{(runs / algo / f'seed_{seed}' / 'model.policy.npz').resolve()}"
             sel = _scores(_evaluate([final], scenarios, check_episodes, SELECTION_SEED, workers))
             train_s = float(_read_episodes(runs / algo / f"seed_{seed}" / "episodes.csv")["wall_s"].max())
@@ -421,8 +430,9 @@ def render_body(data: dict[str, Any]) -> str:
         "",
         "Steps to safety: the first checkpoint (env steps of PPO after the warm start; 0 = the warm start"
         " itself) whose greedy policy has no more collisions than `yielding` and at least its yield"
-        f" compliance on the same {data['check_episodes']} selection episodes of the scenario; one entry"
-        " per seed, '-' = not reached by the last checkpoint.",
+        f" compliance on the same {data.get('safety_episodes', data['check_episodes'])} selection episodes"
+        f" of the scenario (seed {SELECTION_SEED}, the first of them the selection's); one entry per seed,"
+        " '-' = not reached by the last checkpoint.",
         "",
         "| scenario | " + " | ".join(ALGOS) + " |",
         "|---|" + "---|" * len(ALGOS),
@@ -475,13 +485,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-train", action="store_true", help="analyse finished runs only")
     p.add_argument("--episodes", type=int, default=35, help="evaluation episodes per scenario and policy")
     p.add_argument("--check-episodes", type=int, default=4, help="selection episodes per scenario")
+    p.add_argument(
+        "--safety-episodes", type=int, default=45, help="steps-to-safety episodes per scenario and checkpoint"
+    )
     p.add_argument("--workers", type=int, default=2, help="evaluation worker processes")
     p.add_argument("--ship", action="store_true", help="copy the chosen policies into agents/weights")
     p.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results" / "safe_rl_measured.json")
     a = p.parse_args(argv)
     times = {} if a.no_train else train(a.runs, ALGOS, SEEDS)
     t0 = time.perf_counter()
-    result = analyse(a.runs, a.figures, a.episodes, a.check_episodes, a.workers)
+    result = analyse(a.runs, a.figures, a.episodes, a.check_episodes, a.workers, a.safety_episodes)
     result["new_training_wall_s"] = times
     result["analysis_wall_s"] = round(time.perf_counter() - t0, 1)
     if a.ship:
