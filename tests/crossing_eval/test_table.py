@@ -6,6 +6,8 @@ from __future__ import annotations
 import csv
 import dataclasses
 import math
+import sys
+import types
 from pathlib import Path
 
 import pytest
@@ -180,6 +182,7 @@ def test_plots_drawn_in_a_child_process_are_written_and_a_failing_one_stops_the_
 ):
     import crossing_eval.outputs as outputs
 
+    monkeypatch.delitem(sys.modules, "torch", raising=False)  # the child is forked only without torch
     records = _records(RECORDS)
     summary = summarise(records)
     outputs._plot(records, summary, list(RECORDS), tmp_path)
@@ -195,3 +198,21 @@ def test_plots_drawn_in_a_child_process_are_written_and_a_failing_one_stops_the_
     with pytest.raises(RuntimeError, match=r"drawing min_ttc\.png failed"):
         outputs._plot(records, summary, list(RECORDS), tmp_path / "again")
     assert not (tmp_path / "again" / "min_ttc.png").exists()
+
+
+def test_after_torch_the_plots_are_drawn_here_and_a_failing_one_raises_its_own_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+):
+    import crossing_eval.outputs as outputs
+
+    monkeypatch.setitem(sys.modules, "torch", types.ModuleType("torch"))
+    records = _records(RECORDS)
+    summary = summarise(records)
+
+    def broken(*args: object) -> None:
+        raise ValueError("cannot draw")
+
+    monkeypatch.setattr(outputs, "_draw_min_ttc", broken)
+    with pytest.raises(ValueError, match="cannot draw"):
+        outputs._plot(records, summary, list(RECORDS), tmp_path)
+    assert (tmp_path / "safety_vs_efficiency.png").is_file() and not (tmp_path / "min_ttc.png").exists()
