@@ -209,7 +209,11 @@ class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
             new[PLAN_PATHS_KEY] = spaces.Box(
                 -self.bound, self.bound, (len(plans), self.num_slots, PRED_LEN, len(PointColumn)), np.float32
             )
-            new[PLAN_ACCELERATIONS_KEY] = spaces.Box(-np.inf, np.inf, (len(plans),), np.float32)
+            # The plans' own accelerations: constants, so the box is exactly their range (finite bounds,
+            # as Gymnasium's checker asks).
+            new[PLAN_ACCELERATIONS_KEY] = spaces.Box(
+                np.float32(min(plans)), np.float32(max(plans)), (len(plans),), np.float32
+            )
         self.observation_space = spaces.Dict(new)
         self._cache: tuple[int, np.ndarray, np.ndarray] | None = None  # (start step, ids, positions)
         self._plan_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}  # plan → (ids, positions)

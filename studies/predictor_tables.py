@@ -68,6 +68,11 @@ SCHEMES: dict[str, str] = {
 """The three sampling rows of each network and how the summary names them."""
 FINGERPRINT_WINDOWS = 6
 """Windows of the ETH test split in the fingerprint's tiny evaluation (all rows, sample seed 0)."""
+FINGERPRINT_DECIMALS = 3
+"""Decimals (metres) the tiny evaluation is rounded to before hashing. At 4 decimals a fresh install hashed
+the same code differently from the install that measured the tables (float noise between library builds
+crossing a rounding edge), so the tables read as stale; a change to a metric, baseline or loader moves many
+values by millimetres and still shows (the test swaps the energy score)."""
 
 
 def _label(name: str) -> str:
@@ -118,8 +123,8 @@ def fingerprint() -> str:
 
     The evaluation (the first :data:`FINGERPRINT_WINDOWS` windows of ETH test, ``dcvm`` and ``k1-ref``
     tuned on ETH val) runs the code path of :func:`measure`, so a change to a metric, a baseline, the
-    sampling or the data loader changes it; values are rounded to 1e-4 m so float noise between machines
-    does not.
+    sampling or the data loader changes it; values are rounded to :data:`FINGERPRINT_DECIMALS` so float
+    noise between machines and library builds does not.
     """
     digest = hashlib.sha256()
     # The checkpoints' entries only, as the manifest file writes them: the kernel files it also lists are
@@ -135,7 +140,7 @@ def fingerprint() -> str:
     for name in MODELS:
         pred, source = make_predictor(name, "eth", WEIGHTS_DIR, root)
         scores = evaluate_one(pred, tiny, 20, 0) if pred is not None else {}
-        rounded = {m: [round(v, 4) for v in vals] for m, vals in scores.items()}
+        rounded = {m: [round(v, FINGERPRINT_DECIMALS) for v in vals] for m, vals in scores.items()}
         digest.update(json.dumps([name, source, rounded], sort_keys=True).encode())
     return digest.hexdigest()[:16]
 
