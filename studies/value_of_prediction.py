@@ -45,9 +45,9 @@ INTENT_ROWS: tuple[str, ...] = ("oracle", "learned", "qlb", "classical")
 """Intention wrappers of the rows (with predictor none)."""
 PATH_ROWS: tuple[str, ...] = ("oracle", "cvm", "s-cgru")
 """Trajectory predictors of the rows (with intention none)."""
-FLIPS: tuple[float, ...] = (0.1, 0.2, 0.4)
+FLIPS: tuple[float, ...] = (0.05, 0.1, 0.2, 0.3, 0.4)
 """Flip probabilities of the degraded intention oracle."""
-NOISES: tuple[float, ...] = (0.5, 1.5)
+NOISES: tuple[float, ...] = (0.25, 0.5, 1.0, 1.5)
 """Final-displacement error scales (m, per axis) of the degraded path oracle."""
 
 
@@ -368,7 +368,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--path-episodes",
         type=int,
-        default=8,
+        default=35,
         help="episodes per scenario of the path rows (oracle, cvm, s-cgru)",
     )
     parser.add_argument(
