@@ -189,6 +189,11 @@ def analyse(
                 "accuracy": _accuracy_of(accuracy, intention, predictor),
                 "metrics": metrics((intention, predictor), {(r["scenario"], r["episode"]) for r in recs}),
                 "compliance_by_scenario": _by_scenario(recs),
+                "delay_by_scenario": (
+                    {}
+                    if kind_of(intention, predictor) == "degraded"
+                    else _delay_by_scenario(recs, ref_all, free_flow, seed, n_resamples)
+                ),
             }
         )
     share = _obligation_share(ref_all)
@@ -225,6 +230,34 @@ def _by_scenario(recs: Sequence[dict[str, Any]]) -> dict[str, list[int]]:
         c[0] += int(r["result"]["yield_compliant"])
         c[1] += int(r["result"]["yield_obligations"])
     return dict(sorted(out.items()))
+
+
+def _delay_by_scenario(
+    recs: Sequence[dict[str, Any]],
+    ref_all: Sequence[dict[str, Any]],
+    free_flow: dict[str, float],
+    seed: int,
+    n_resamples: int,
+) -> dict[str, dict[str, Any]]:
+    """Scenario → the row's mean censored delay and its paired difference to the reference [CI].
+
+    Where a row's value comes from (or is lost) is a per-scenario question: a pooled mean can hide one
+    scenario that carries it.
+    """
+    fn = METRICS["mean_delay"][1]
+
+    def difference(a: np.ndarray, b: np.ndarray, axis: int = -1) -> np.ndarray:
+        return fn(a, axis=axis) - fn(b, axis=axis)
+
+    out: dict[str, dict[str, Any]] = {}
+    for sc in sorted({r["scenario"] for r in recs}):
+        keys = {(r["scenario"], r["episode"]) for r in recs if r["scenario"] == sc}
+        mine = _columns(_select(recs, keys), free_flow)["delay"]
+        ref = _columns(_select(ref_all, keys), free_flow)["delay"]
+        lo, hi = _interval([mine, ref], difference, n_resamples, seed)
+        value = float(fn(mine))
+        out[sc] = {"value": value, "diff": value - float(fn(ref)), "diff_ci": [lo, hi], "episodes": len(keys)}
+    return out
 
 
 def _obligation_share(recs: Sequence[dict[str, Any]]) -> dict[str, float]:
@@ -381,6 +414,11 @@ def render_body(data: dict[str, Any]) -> str:
         "",
         *_captured_table(main),
         "",
+        "**Censored delay per scenario** (s; difference to no prediction on the same episodes [paired"
+        " bootstrap 95 % interval]): where each row's delay value is earned or lost",
+        "",
+        *_delay_scenario_table(main),
+        "",
         "**Yield compliance per scenario** (compliant / obligations; share of the reference's obligations)",
         "",
         *_compliance_table(data, main),
@@ -428,6 +466,25 @@ def _compliance_table(data: dict[str, Any], rows: Sequence[dict[str, Any]]) -> l
             cells.append(f"{c / n:.3f}" if n else "–")
         lines.append("| " + " | ".join(cells) + " |")
     return lines
+
+
+def _delay_scenario_table(rows: Sequence[dict[str, Any]]) -> list[str]:
+    shown = [r for r in rows if r.get("delay_by_scenario")]
+    head = ["scenario", *(f"{_label(r)} (n/scenario={_per_scenario_n(r)})" for r in shown)]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    scenarios = sorted({sc for r in shown for sc in r["delay_by_scenario"]})
+    for sc in scenarios:
+        cells = [sc]
+        for r in shown:
+            c = r["delay_by_scenario"].get(sc)
+            cells.append("–" if c is None else _diff_cell(c, 2))
+        lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def _per_scenario_n(row: dict[str, Any]) -> str:
+    counts = sorted({c["episodes"] for c in row["delay_by_scenario"].values()})
+    return "/".join(str(n) for n in counts)
 
 
 def _accuracy_table(rows: Sequence[dict[str, Any]]) -> list[str]:

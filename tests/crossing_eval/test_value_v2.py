@@ -108,3 +108,33 @@ def test_render_states_targets_and_the_figure_draws() -> None:
     assert "**learned** captures 25 %" in text
     assert "| intent: learned | 40 |" in text
     assert plot_curve(data)[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_delay_per_scenario_shows_the_scenario_that_carries_a_row() -> None:
+    """A row slower on one scenario only: the pooled mean hides it, the per-scenario cells show it."""
+    records = _records()
+    for key, recs in list(records.items()):
+        extra = [dict(r, scenario="ncap_cpna") for r in recs]
+        if key == ("none", "oracle"):
+            extra = [dict(r, result=dict(r["result"], delay=r["result"]["delay"] + 8.0)) for r in extra]
+        records[key] = recs + extra
+    data = analyse(records, {}, {"policy": "p"}, n_resamples=200)
+    rows = {(r["intention"], r["predictor"]): r for r in data["rows"]}
+    per = rows[("none", "oracle")]["delay_by_scenario"]
+    assert per["ncap_cpna"]["diff"] == pytest.approx(8.0) and per["ncap_cpna"]["episodes"] == 40
+    assert per["ncap_cpna"]["diff_ci"] == pytest.approx([8.0, 8.0])  # a constant shift: a point interval
+    assert per["zebra_case1"]["diff"] == pytest.approx(0.0)
+    assert rows[("none", "oracle")]["metrics"]["mean_delay"]["diff"] == pytest.approx(4.0)
+    assert rows[("oracle", "none")]["delay_by_scenario"]["ncap_cpna"]["diff"] == pytest.approx(-4.0)
+    data.update(
+        commit="abc123def456",
+        wall_seconds=1.0,
+        settings={
+            "command": "c", "policy": "p", "scenarios": ["ncap_cpna", "zebra_case1"], "episodes": 40,
+            "flip_episodes": 10, "path_episodes": 40, "path_sweep_episodes": 4, "accuracy_episodes": 2,
+            "seed": 2024,
+        },
+    )  # fmt: skip
+    text = render_body(data)
+    line = next(x for x in text.splitlines() if x.startswith("| ncap_cpna |") and "+8.00 [+8.00, +8.00]" in x)
+    assert line.count("|") == 2 + len(rows)  # the scenario and one cell per row
