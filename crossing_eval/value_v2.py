@@ -390,10 +390,14 @@ def render_body(data: dict[str, Any]) -> str:
         " `benchmarks/results/value_of_prediction.json` by `python -m benchmarks.results`.",
         "",
         f"Policy `{s['policy']}` on {len(s['scenarios'])} scenarios ({', '.join(s['scenarios'])}),"
-        f" {s['episodes']} episodes each (base seed {s['seed']}), every row on the same episodes; the"
-        f" path rows (oracle, CVM, S-CGRU) on the first {s['path_episodes']} of each scenario, the degraded"
-        f" intent rows on the first {s['flip_episodes']} and the degraded path rows on the first"
-        f" {s['path_sweep_episodes']}, each compared with the reference on those. Cells: value"
+        f" {s['episodes']} episodes each (base seed {s['seed']}), every row on the same episodes;"
+        + (
+            ""
+            if s["path_episodes"] == s["episodes"]
+            else f" the path rows (oracle, CVM, S-CGRU) on the first {s['path_episodes']} of each scenario,"
+        )
+        + f" the degraded intent rows on the first {s['flip_episodes']} and the degraded path rows on the"
+        f" first {s['path_sweep_episodes']}, each compared with the reference on those. Cells: value"
         " (difference to no prediction [paired bootstrap 95 % interval])."
         " **oracle** and **degraded** rows read the ground truth: bounds and probes, not predictors.",
         "",
