@@ -9,8 +9,9 @@ on the same seeds) and the open-loop accuracy of each row, and returns one JSON-
   (row − none) / (oracle − none), the oracle being the row's own kind of prediction made perfect; reported
   only where the oracle's own difference is an improvement whose interval excludes 0 (a share of a gain
   that is not there means nothing);
-- yield compliance per scenario, and the same comparison without any scenario that holds more than a third
-  of the obligations (one busy scenario must not carry the table);
+- censored delay per scenario with its paired difference to the reference (where a row's value is earned
+  or lost), yield compliance per scenario, and the same comparison without any scenario that holds more
+  than a third of the obligations (one busy scenario must not carry the table);
 - the accuracy-to-value points: each row's open-loop accuracy (Brier, ADE) beside its driving value.
 
 Delay is censored: an episode that never passed the crossing counts at its duration minus the free-flow
