@@ -25,7 +25,6 @@ import json
 import math
 import multiprocessing
 import re
-import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -33,6 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from crossing_common.files import write_bytes_atomic
+from crossing_common.processes import fork_is_safe
 from crossing_env.safety import json_safe
 from crossing_eval.ncap import ncap_markdown
 from crossing_eval.report import csv_cell, per_scenario_rows, report_markdown, scenario_labels
@@ -191,7 +191,7 @@ def _plot(
     # (text layout, rasterising) is most of the time after the last episode. Not after torch has been
     # imported (a forked child of a process that ran torch ops can hang) nor where fork is unavailable.
     children = []
-    if "torch" not in sys.modules and "fork" in multiprocessing.get_all_start_methods():
+    if fork_is_safe():
         fork = multiprocessing.get_context("fork")
         for file_name, draw in plots[1:]:
             child = fork.Process(target=draw_and_save, args=(file_name, draw), name=f"plot {file_name}")

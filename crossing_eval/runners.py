@@ -24,6 +24,7 @@ from typing import Any
 
 from tqdm import tqdm
 
+from crossing_common.processes import fork_is_safe
 from crossing_eval.tasks import EpisodeRecord, EpisodeTask, heaviest_first, run_episode, warm_up
 
 IN_FLIGHT_PER_WORKER = 2
@@ -100,9 +101,7 @@ def pool_start_method() -> str:
     does not import torch (the shipped predictor and learned policy run without it), so its workers are
     forked from the preflight's process, with its imports, envs and models, in milliseconds.
     """
-    if "torch" in sys.modules or "fork" not in multiprocessing.get_all_start_methods():
-        return "forkserver"
-    return "fork"
+    return "fork" if fork_is_safe() else "forkserver"
 
 
 def pool_pays_off(total: int | None, workers: int, method: str = "forkserver") -> bool:

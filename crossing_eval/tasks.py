@@ -20,6 +20,7 @@ import numpy as np
 
 import rollout
 from agents import policy_uses_predictors
+from crossing_common.processes import fork_is_safe
 from rollout import build_policy, make_env
 
 
@@ -144,7 +145,7 @@ def warm_up(task: EpisodeTask, steps: int = WARM_UP_STEPS) -> None:
     """
     env, _ = _cached_env(task)
     aside = _kernel_to_compile(env)
-    if aside is not None and "torch" not in sys.modules and "fork" in multiprocessing.get_all_start_methods():
+    if aside is not None and fork_is_safe():
         child = multiprocessing.get_context("fork").Process(target=aside, name="compile predictor kernel")
         child.start()
         try:
@@ -157,12 +158,11 @@ def warm_up(task: EpisodeTask, steps: int = WARM_UP_STEPS) -> None:
 
 def _kernel_to_compile(env: Any) -> Callable[[], None] | None:
     """The call of the first wrapper in `env`'s chain that has an uncompiled kernel (see `warm_up`)."""
-    while env is not None:
-        method = getattr(type(env), "kernel_to_compile", None)
-        if method is not None:
-            return method(env)
-        env = getattr(env, "env", None)
-    return None
+    try:
+        offer = env.get_wrapper_attr("kernel_to_compile")
+    except AttributeError:  # no wrapper in the chain has a kernel of its own
+        return None
+    return offer()
 
 
 def heaviest_first(tasks: Sequence[EpisodeTask]) -> list[EpisodeTask]:

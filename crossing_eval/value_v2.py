@@ -27,7 +27,15 @@ from typing import Any
 
 import numpy as np
 
-from crossing_eval.prediction_value import _free_flow_times, _interval, _mean, _p5, _ratio, figure_png
+from crossing_eval.prediction_value import (
+    _difference,
+    _free_flow_times,
+    _interval,
+    _mean,
+    _p5,
+    _ratio,
+    figure_png,
+)
 
 __all__ = ["METRICS", "analyse", "plot_curve", "render_body", "render_summary"]
 
@@ -246,16 +254,12 @@ def _delay_by_scenario(
     scenario that carries it.
     """
     fn = METRICS["mean_delay"][1]
-
-    def difference(a: np.ndarray, b: np.ndarray, axis: int = -1) -> np.ndarray:
-        return fn(a, axis=axis) - fn(b, axis=axis)
-
     out: dict[str, dict[str, Any]] = {}
     for sc in sorted({r["scenario"] for r in recs}):
         keys = {(r["scenario"], r["episode"]) for r in recs if r["scenario"] == sc}
         mine = _columns(_select(recs, keys), free_flow)["delay"]
         ref = _columns(_select(ref_all, keys), free_flow)["delay"]
-        lo, hi = _interval([mine, ref], difference, n_resamples, seed)
+        lo, hi = _interval([mine, ref], _difference(fn, 1), n_resamples, seed)
         value = float(fn(mine))
         out[sc] = {"value": value, "diff": value - float(fn(ref)), "diff_ci": [lo, hi], "episodes": len(keys)}
     return out

@@ -430,7 +430,7 @@ def render_body(data: dict[str, Any]) -> str:
         "",
         "Steps to safety: the first checkpoint (env steps of PPO after the warm start; 0 = the warm start"
         " itself) whose greedy policy has no more collisions than `yielding` and at least its yield"
-        f" compliance on the same {data.get('safety_episodes', data['check_episodes'])} selection episodes"
+        f" compliance on the same {data['safety_episodes']} selection episodes"
         f" of the scenario (seed {SELECTION_SEED}, the first of them the selection's); one entry per seed,"
         " '-' = not reached by the last checkpoint.",
         "",
