@@ -175,6 +175,10 @@ class PredictiveYieldingConfig(YieldingConfig):
     plan_metrics: MetricsConfig = field(default_factory=MetricsConfig)
     """Thresholds of the scored terms: `serious_ttc` (near miss) and `hard_braking_threshold`, the
     evaluation's own by default."""
+    plan_deferral: bool = True
+    """Charge a plan that only defers a conflict (it neither meets nor passes a pedestrian whom another
+    plan meets in the corridor ahead: someone waiting for the car) the mildest cost of meeting that person
+    (`agents.plans`); without it the car creeps up to a pedestrian who waits for it to come close."""
     plan_switch_margin: float = 0.1
     """Hysteresis: switch to a better plan only if it scores at least this much higher (reward units; 0.1
     = 2 m of progress at the default weights)."""

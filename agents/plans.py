@@ -14,6 +14,16 @@ terms (`scenarios.config.RewardConfig` weights):
 - **hard_braking**: a stop (for a pedestrian in the corridor ahead, or at the legal stop) that needs more
   than `hard_braking_threshold` costs the steps of a full stop at the ego's `max_deceleration`.
 
+**Deferred conflicts** (a departure from PDM-Closed, whose agents do not react to the ego): a pedestrian who
+waits for the car (a Euro NCAP pedestrian steps off when the car's time to arrival at its current speed falls
+to a drawn value) enters the corridor ahead under a faster plan and stays on the kerb under a slower one.
+Scored within the horizon alone, the slower plan looks free of conflict: it only moves the conflict beyond
+the horizon, and a car that re-plans every step keeps slowing and creeps up to the person, who keeps
+waiting (a dev trace, ncap_cpna: 1.7 m/s for 4 s, time to pass 16.0 s against the rules' 5.4 s). So a plan
+that has not passed a pedestrian whom another plan meets in the corridor ahead is charged the mildest
+near-miss and hard-braking cost among the plans that meet that pedestrian (`plan_deferral`): the conflict is
+still to come. A plan that stops the car is charged no near miss (the standing car offers the way).
+
 The legal-yield rules stay in force whatever the plan, so a plan's ego stops at the rules' legal stop
 target (the stop line for a red light or a zebra duty) and cannot run into anyone beyond it.
 
@@ -69,6 +79,7 @@ def score_plans(
     collision = np.zeros((b, p), dtype=bool)
     hard = np.zeros((b, p), dtype=bool)
     near_time = np.zeros((b, p))
+    meets = np.zeros(plan_paths.shape[:3], dtype=bool)  # (B, P, K): in the corridor ahead at some step
     for n in range(1, steps * SUBSTEPS + 1):
         j, f = divmod(n, SUBSTEPS)
         at = (
@@ -79,11 +90,9 @@ def score_plans(
         rel_x = at[..., 0] - s[..., None]  # (B, P, K)
         y = np.abs(at[..., 1])
         collision |= (ok & (y <= cfg.ego_width / 2 + r) & (np.abs(rel_x) <= half_len)).any(-1)
-        gap = np.where(
-            ok & (y <= cfg.ego_width / 2 + r + cfg.lateral_margin) & (rel_x > half_len),
-            rel_x - half_len,
-            np.inf,
-        )
+        ahead = ok & (y <= cfg.ego_width / 2 + r + cfg.lateral_margin) & (rel_x > half_len)
+        meets |= ahead
+        gap = np.where(ahead, rel_x - half_len, np.inf)
         gap = np.minimum(gap.min(axis=-1), halt - s)  # nearest obstacle ahead, the legal stop included
         with np.errstate(divide="ignore", invalid="ignore"):
             need = np.where(gap > 0.05, v * v / (2.0 * np.maximum(gap, 0.05)), np.where(v > 0.0, np.inf, 0.0))
@@ -95,13 +104,25 @@ def score_plans(
         s = np.minimum(s + 0.5 * (v + nxt) * dt, np.maximum(halt, s))
         v = np.where(s >= halt, 0.0, nxt)
     hard_steps = np.ceil(np.maximum(speed, 0.0) / cfg.ego.max_deceleration / cfg.dt)[:, None]
-    score = (
-        w.progress * s
-        + w.collision * collision
-        + w.near_miss * near_time
-        + w.hard_braking * hard_steps * hard
-    )
+    conflict = w.near_miss * near_time + w.hard_braking * hard_steps * hard  # (B, P), ≤ 0
+    if cfg.plan_deferral:
+        conflict = conflict + _deferred_cost(conflict, meets, pts[:, :, :, -1, 0] - s[..., None] > -half_len)
+    score = w.progress * s + w.collision * collision + conflict
     return score, collision
+
+
+def _deferred_cost(conflict: np.ndarray, meets: np.ndarray, not_passed: np.ndarray) -> np.ndarray:
+    """(B, P) cost of the conflicts a plan only defers (see the module docstring; 0 where none).
+
+    `conflict` (B, P) is each plan's own near-miss and hard-braking cost (≤ 0), `meets` (B, P, K) whether
+    the plan's ego has pedestrian k in its corridor ahead at some step, `not_passed` (B, P, K) whether
+    pedestrian k is not behind the ego at the horizon's end. Pedestrian k is deferred by plan p if another
+    plan meets it and p neither meets nor passes it; p is charged the mildest cost among the plans that meet
+    k (the worst over its deferred pedestrians).
+    """
+    deferred = ~meets & not_passed & meets.any(axis=1, keepdims=True)  # (B, P, K)
+    mildest = np.where(meets, conflict[..., None], -np.inf).max(axis=1, keepdims=True)  # (B, 1, K)
+    return np.where(deferred, mildest, 0.0).min(axis=-1)
 
 
 def choose_plans(
