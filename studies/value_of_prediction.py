@@ -57,21 +57,32 @@ FINGERPRINT_STEPS = 150
 
 @functools.cache
 def _probe_digest(intention: str, predictor: str) -> str:
-    """Hash of a short `predictive_yielding` rollout on one zebra under one pair of wrappers."""
+    """Hash of short `predictive_yielding` rollouts under one pair of wrappers (`probe_scenarios`)."""
     from crossing_eval.tasks import episode_seed
     from predictors.learned_intent_weights import WEIGHTS_PATH
     from rollout import RolloutSpec, run_spec
 
-    spec = RolloutSpec(scenario="zebra_case1", policy=POLICY, intention=intention, predictor=predictor)
-    episode = run_spec(spec, episode_seed(BASE_SEED, "zebra_case1", 0), FINGERPRINT_STEPS)
     digest = hashlib.sha256(f"{intention}/{predictor}".encode())
     if intention in WEIGHTS_INTENTIONS:
         # A short rollout on one zebra may never meet the situation a weights change moves (a new release
         # bound acts on people waiting for a bus), so the file itself is part of the row's fingerprint.
         digest.update(WEIGHTS_PATH.read_bytes())
-    digest.update(json.dumps(episode.actions).encode())
-    digest.update(json.dumps(episode.result, sort_keys=True, default=str).encode())
+    for scenario in probe_scenarios(predictor):
+        spec = RolloutSpec(scenario=scenario, policy=POLICY, intention=intention, predictor=predictor)
+        episode = run_spec(spec, episode_seed(BASE_SEED, scenario, 0), FINGERPRINT_STEPS)
+        digest.update(json.dumps(episode.actions).encode())
+        digest.update(json.dumps(episode.result, sort_keys=True, default=str).encode())
     return digest.hexdigest()
+
+
+def probe_scenarios(predictor: str) -> tuple[str, ...]:
+    """Scenarios of a row's probe rollouts: one zebra, and for a path row a pedestrian who reacts to the car.
+
+    On the zebra alone a change to how plans are scored may move nothing (the deferred-conflict charge of
+    `agents.plans` left the 0.25 and 0.5 m noise rows' probes identical while it moved their NCAP episodes),
+    so a path row also probes ``ncap_cpna``, whose pedestrian steps off by the car's time to arrive.
+    """
+    return ("zebra_case1",) if predictor == "none" else ("zebra_case1", "ncap_cpna")
 
 
 WEIGHTS_INTENTIONS: tuple[str, ...] = ("learned", "qlb", "classical")

@@ -159,3 +159,19 @@ def test_an_intent_row_goes_stale_when_its_weights_file_changes(
     after = probe("learned", "none"), probe("oracle-flip=0.4", "none")
     assert after[0] != before[0]
     assert after[1] == before[1]
+
+
+def test_a_path_row_goes_stale_when_plan_scoring_changes_outside_the_zebra(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The deferred-conflict charge moved no zebra probe of the small path-noise rows; the NCAP probe
+    catches it (measured: the 0.25 m row's zebra rollout is the same with and without the charge)."""
+    import agents.plans as plans
+    from studies.value_of_prediction import _probe_digest, probe_scenarios
+
+    assert probe_scenarios("none") == ("zebra_case1",)
+    assert "ncap_cpna" in probe_scenarios("oracle-noise=0.25")
+    probe = _probe_digest.__wrapped__
+    before = probe("none", "oracle-noise=0.25")
+    monkeypatch.setattr(plans, "_deferred_cost", lambda conflict, *_: np.zeros_like(conflict))
+    assert probe("none", "oracle-noise=0.25") != before
