@@ -20,9 +20,12 @@ to a drawn value) enters the corridor ahead under a faster plan and stays on the
 Scored within the horizon alone, the slower plan looks free of conflict: it only moves the conflict beyond
 the horizon, and a car that re-plans every step keeps slowing and creeps up to the person, who keeps
 waiting (a dev trace, ncap_cpna: 1.7 m/s for 4 s, time to pass 16.0 s against the rules' 5.4 s). So a plan
-that has not passed a pedestrian whom another plan meets in the corridor ahead is charged the mildest
-near-miss and hard-braking cost among the plans that meet that pedestrian (`plan_deferral`): the conflict is
-still to come. A plan that stops the car is charged no near miss (the standing car offers the way).
+that neither meets nor has passed a pedestrian whom another plan meets in the corridor ahead is charged the
+mildest near-miss and hard-braking cost among the plans that meet that pedestrian (`plan_deferral`): the
+conflict is still to come. Near-miss time accrues only while the ego moves, so a plan that stops the car
+and lets the person cross meets them at no near-miss cost. A meeting plan's cost is its whole near-miss and
+hard-braking cost, not the share due to that one pedestrian (the forecasts do not attribute it), so with
+several people about the charge can be too high; the NCAP scenarios it is for have one.
 
 The legal-yield rules stay in force whatever the plan, so a plan's ego stops at the rules' legal stop
 target (the stop line for a red light or a zebra duty) and cannot run into anyone beyond it.

@@ -113,7 +113,8 @@ def summarise(bound: float, results: Sequence[dict[str, Any]]) -> dict[str, Any]
         "compliant": compliant,
         "obligations": obligations,
         "compliance": compliant / obligations if obligations else 1.0,
-        "mean_duration": float(np.mean([r["duration"] for r in results])),
+        # No episode, no mean (NaN without numpy's empty-slice warning).
+        "mean_duration": float(np.mean([r["duration"] for r in results])) if results else float("nan"),
     }
 
 

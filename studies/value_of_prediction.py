@@ -104,7 +104,9 @@ rollout is left out (its noisy version runs it) to keep the check cheap."""
 
 
 def value_fingerprint() -> str:
-    """Hash of short `predictive_yielding` rollouts on one zebra under each kind of row's wrappers (`PROBES`).
+    """Hash of short `predictive_yielding` rollouts under each kind of row's wrappers (`PROBES`).
+
+    The rollouts run on the scenarios of `probe_scenarios`.
 
     The registry's behaviour fingerprint drives `yielding` only; this study goes stale when the predictors,
     the degraded oracles or `predictive_yielding` change what an episode gives.

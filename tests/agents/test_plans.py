@@ -143,6 +143,40 @@ def test_a_plan_that_only_defers_a_waiting_pedestrian_is_charged_the_conflict() 
     )
 
 
+def test_a_plan_that_passes_her_first_is_not_charged_and_the_worst_deferral_counts() -> None:
+    acc = np.array([1.5, 0.0, -2.5])
+    present = np.ones((1, 2), bool)
+    speed = np.array([13.0])
+    charged, deferring = PredictiveYieldingConfig(), PredictiveYieldingConfig(plan_deferral=False)
+    # Someone 20 m ahead who steps off at once, but only under the slow plan (the car slows for her): go
+    # and keep pass her while she stands, so neither meets her nor defers her. Slow meets her at a cost
+    # (near misses); go and keep are charged nothing for it.
+    t = np.arange(1, 13)
+    standing = np.stack([np.full(12, 20.0), np.full(12, 3.0)], axis=-1)
+    walking = np.stack([np.full(12, 20.0), 3.0 - 1.4 * 0.4 * t], axis=-1)
+    passed = np.stack([standing, standing, walking])[None, :, None]
+    one = present[:, :1]
+    slow_speed = np.array([10.0])
+    with_charge, _ = score_plans(slow_speed, acc, passed, one, charged)
+    without, _ = score_plans(slow_speed, acc, passed, one, deferring)
+    no_cost = PredictiveYieldingConfig(
+        plan_deferral=False,
+        plan_weights=dataclasses.replace(deferring.plan_weights, near_miss=0.0, hard_braking=0.0),
+    )
+    assert without[0, 2] < score_plans(slow_speed, acc, passed, one, no_cost)[0][0, 2]  # slow pays
+    np.testing.assert_array_equal(with_charge, without)
+    # Two people the slow plan defers, met by plans of different cost: the worst of the two is charged.
+    near = _reactive_pedestrian(3, [True, False, False])  # met by go only
+    far = _reactive_pedestrian(3, [True, True, False])  # met by go and keep
+    both = np.concatenate([near, far], axis=2)
+    before, _ = score_plans(speed, acc, both, present, deferring)
+    after, _ = score_plans(speed, acc, both, present, charged)
+    progress, _ = score_plans(speed, acc, both, present, no_cost)
+    cost = (before - progress)[0]  # each plan's own meeting cost
+    worst = min(cost[0], max(cost[0], cost[1]))  # near: go's cost; far: the milder of go's and keep's
+    assert after[0, 2] == pytest.approx(before[0, 2] + worst)
+
+
 def _time_to_pass(seed: int, **overrides: object) -> float:
     spec = RolloutSpec(
         scenario="ncap_cpna",

@@ -40,6 +40,7 @@ def test_choice_is_the_last_pass_before_the_first_failure() -> None:
     assert choose([_point(0.1), _point(0.2)], fallback=0.3) == 0.3  # never below the open-loop bound
     assert passes(_point(0.5, compliant=99)) and not passes(_point(0.5, compliant=989, obligations=1000))
     assert summarise(0.2, [])["compliance"] == 1.0
+    assert np.isnan(summarise(0.2, [])["mean_duration"])
 
 
 def test_a_higher_bound_releases_bus_waiters_without_breaking_compliance() -> None:
