@@ -179,6 +179,10 @@ class PredictiveYieldingConfig(YieldingConfig):
     """Charge a plan that only defers a conflict (it neither meets nor passes a pedestrian whom another
     plan meets in the corridor ahead: someone waiting for the car) the mildest cost of meeting that person
     (`agents.plans`); without it the car creeps up to a pedestrian who waits for it to come close."""
+    plan_deferred_wait: bool = True
+    """Also charge a plan that defers someone the time the ego will still wait, after the horizon, for them
+    to walk across its corridor (at the progress weight and the speed limit: the progress that time would
+    have bought); without it a slowed car crawls towards a pedestrian who waits for it to stand."""
     plan_switch_margin: float = 0.1
     """Hysteresis: switch to a better plan only if it scores at least this much higher (reward units; 0.1
     = 2 m of progress at the default weights)."""

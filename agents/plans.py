@@ -25,7 +25,10 @@ mildest near-miss and hard-braking cost among the plans that meet that pedestria
 conflict is still to come. Near-miss time accrues only while the ego moves, so a plan that stops the car
 and lets the person cross meets them at no near-miss cost. A meeting plan's cost is its whole near-miss and
 hard-braking cost, not the share due to that one pedestrian (the forecasts do not attribute it), so with
-several people about the charge can be too high; the NCAP scenarios it is for have one.
+several people about the charge can be too high; the NCAP scenarios it is for have one. The deferring plan
+is also charged the time the car will still wait for that person to walk across its corridor after the
+horizon, at the progress weight and the speed limit (`plan_deferred_wait`): otherwise a car that has slowed
+keeps crawling towards someone who waits for it to stand, since crawling scores more progress than stopping.
 
 The legal-yield rules stay in force whatever the plan, so a plan's ego stops at the rules' legal stop
 target (the stop line for a red light or a zebra duty) and cannot run into anyone beyond it.
@@ -43,6 +46,8 @@ from crossing_env.observation import HISTORY_INTERVAL
 
 SUBSTEPS = 4
 """Ego integration steps per 0.4 s forecast interval."""
+WALKING_ACROSS = 0.2
+"""Slowest lateral pace (m/s) assumed for a deferred pedestrian's walk across the corridor."""
 
 
 def score_plans(
@@ -108,22 +113,48 @@ def score_plans(
         v = np.where(s >= halt, 0.0, nxt)
     hard_steps = np.ceil(np.maximum(speed, 0.0) / cfg.ego.max_deceleration / cfg.dt)[:, None]
     conflict = w.near_miss * near_time + w.hard_braking * hard_steps * hard  # (B, P), ≤ 0
+    end = pts[:, :, :, -1]  # (B, P, K, 2)
+    rel_end = end[..., 0] - s[..., None]
+    # Pedestrian k is deferred by plan p if another plan meets it and p neither meets nor passes it.
+    deferred = ~meets & (rel_end > -half_len) & meets.any(axis=1, keepdims=True)  # (B, P, K)
     if cfg.plan_deferral:
-        conflict = conflict + _deferred_cost(conflict, meets, pts[:, :, :, -1, 0] - s[..., None] > -half_len)
+        conflict = conflict + _deferred_cost(conflict, meets, deferred)
     score = w.progress * s + w.collision * collision + conflict
+    if cfg.plan_deferred_wait:
+        band = cfg.ego_width / 2 + r + cfg.lateral_margin
+        wait = _deferred_wait(pts[..., 1], rel_end - half_len, deferred, band, cfg.speed_limit)
+        score = score - w.progress * cfg.speed_limit * wait
     return score, collision
 
 
-def _deferred_cost(conflict: np.ndarray, meets: np.ndarray, not_passed: np.ndarray) -> np.ndarray:
+def _deferred_wait(
+    y: np.ndarray, gap: np.ndarray, deferred: np.ndarray, band: float, speed_limit: float
+) -> np.ndarray:
+    """(B, P) seconds the ego will still wait, after the horizon, for the pedestrians a plan defers.
+
+    `y` (B, P, K, T + 1) are the forecast lateral positions, `gap` (B, P, K) each pedestrian's distance
+    ahead of the ego's front at the horizon's end, `deferred` (B, P, K) as in `score_plans`. Someone
+    deferred will still walk across the whole corridor (half-width `band`) from where they stand, at the
+    lateral pace the meeting plans show; the wait is that walk less the time the ego needs to get there at
+    the speed limit, at most the horizon, and the longest one counts. Without it a plan that crawls
+    towards a person who waits for the car keeps scoring more progress than stopping and letting them
+    cross (a dev trace, ncap_cpna: 2.7 m/s held for 4 s, then 0.5 m/s for 9 s).
+    """
+    horizon = (y.shape[-1] - 1) * HISTORY_INTERVAL
+    pace = np.abs(np.diff(y, axis=-1)).max(axis=(1, 3), keepdims=True)[..., 0] / HISTORY_INTERVAL  # (B,1,K)
+    walk = (np.abs(y[..., -1]) + band) / np.maximum(pace, WALKING_ACROSS)
+    wait = np.clip(np.minimum(walk, horizon) - np.maximum(gap, 0.0) / speed_limit, 0.0, None)
+    return np.where(deferred, wait, 0.0).max(axis=-1, initial=0.0)
+
+
+def _deferred_cost(conflict: np.ndarray, meets: np.ndarray, deferred: np.ndarray) -> np.ndarray:
     """(B, P) cost of the conflicts a plan only defers (see the module docstring; 0 where none).
 
     `conflict` (B, P) is each plan's own near-miss and hard-braking cost (≤ 0), `meets` (B, P, K) whether
-    the plan's ego has pedestrian k in its corridor ahead at some step, `not_passed` (B, P, K) whether
-    pedestrian k is not behind the ego at the horizon's end. Pedestrian k is deferred by plan p if another
-    plan meets it and p neither meets nor passes it; p is charged the mildest cost among the plans that meet
-    k (the worst over its deferred pedestrians).
+    the plan's ego has pedestrian k in its corridor ahead at some step, `deferred` (B, P, K) whether the
+    plan only defers k. A plan is charged the mildest cost among the plans that meet a pedestrian it
+    defers (the worst over its deferred pedestrians).
     """
-    deferred = ~meets & not_passed & meets.any(axis=1, keepdims=True)  # (B, P, K)
     mildest = np.where(meets, conflict[..., None], -np.inf).max(axis=1, keepdims=True)  # (B, 1, K)
     return np.where(deferred, mildest, 0.0).min(axis=-1)
 
