@@ -67,12 +67,29 @@ def _probe_digest(intention: str, predictor: str) -> str:
         # A short rollout on one zebra may never meet the situation a weights change moves (a new release
         # bound acts on people waiting for a bus), so the file itself is part of the row's fingerprint.
         digest.update(WEIGHTS_PATH.read_bytes())
+    if scores_plans(predictor):
+        # Likewise a change to how plans are scored may leave every short probe as it was (the wait charge
+        # of `agents.plans` did), so the scoring code and the policy's defaults are part of the stamp.
+        from agents.config import PredictiveYieldingConfig
+
+        for path in PLAN_SCORING_FILES:
+            digest.update(path.read_bytes())
+        digest.update(repr(PredictiveYieldingConfig()).encode())
     for scenario in probe_scenarios(predictor):
         spec = RolloutSpec(scenario=scenario, policy=POLICY, intention=intention, predictor=predictor)
         episode = run_spec(spec, episode_seed(BASE_SEED, scenario, 0), FINGERPRINT_STEPS)
         digest.update(json.dumps(episode.actions).encode())
         digest.update(json.dumps(episode.result, sort_keys=True, default=str).encode())
     return digest.hexdigest()
+
+
+PLAN_SCORING_FILES: tuple[Path, ...] = (Path(__file__).resolve().parents[1] / "agents" / "plans.py",)
+"""Source of the plan scoring, part of the fingerprint of every row whose predictor gives plan forecasts."""
+
+
+def scores_plans(predictor: str) -> bool:
+    """Whether `predictive_yielding` scores plans under this predictor (the path oracle, exact or noisy)."""
+    return predictor == "oracle" or predictor.startswith("oracle-")
 
 
 def probe_scenarios(predictor: str) -> tuple[str, ...]:

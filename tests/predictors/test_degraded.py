@@ -174,4 +174,24 @@ def test_a_path_row_goes_stale_when_plan_scoring_changes_outside_the_zebra(
     probe = _probe_digest.__wrapped__
     before = probe("none", "oracle-noise=0.25")
     monkeypatch.setattr(plans, "_deferred_cost", lambda conflict, *_: np.zeros_like(conflict))
+    monkeypatch.setattr(plans, "_deferred_wait", lambda y, gap, *_: np.zeros(gap.shape[:2]))
     assert probe("none", "oracle-noise=0.25") != before
+
+
+def test_a_plan_row_goes_stale_when_the_plan_scoring_code_changes(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The wait charge of `agents.plans` left every short probe of the path-oracle rows as it was, so the
+    scoring source is part of those rows' stamps, and of no other row's."""
+    import studies.value_of_prediction as vop
+
+    assert vop.scores_plans("oracle") and vop.scores_plans("oracle-noise=1.5")
+    assert not vop.scores_plans("cvm") and not vop.scores_plans("none")
+    probe = vop._probe_digest.__wrapped__
+    before = probe("none", "oracle-noise=1.5"), probe("none", "cvm")
+    edited = tmp_path / "plans.py"
+    edited.write_bytes(vop.PLAN_SCORING_FILES[0].read_bytes() + b"\n")
+    monkeypatch.setattr(vop, "PLAN_SCORING_FILES", (edited,))
+    after = probe("none", "oracle-noise=1.5"), probe("none", "cvm")
+    assert after[0] != before[0]
+    assert after[1] == before[1]
