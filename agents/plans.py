@@ -134,11 +134,12 @@ def _deferred_wait(
 
     `y` (B, P, K, T + 1) are the forecast lateral positions, `gap` (B, P, K) each pedestrian's distance
     ahead of the ego's front at the horizon's end, `deferred` (B, P, K) as in `score_plans`. Someone
-    deferred will still walk across the whole corridor (half-width `band`) from where they stand, at the
-    lateral pace the meeting plans show; the wait is that walk less the time the ego needs to get there at
-    the speed limit, at most the horizon, and the longest one counts. Without it a plan that crawls
-    towards a person who waits for the car keeps scoring more progress than stopping and letting them
-    cross (a dev trace, ncap_cpna: 2.7 m/s held for 4 s, then 0.5 m/s for 9 s).
+    deferred will still walk across the whole corridor (half-width `band`) from where this plan leaves
+    them, at the fastest lateral pace any plan's forecast shows for them; the wait is that walk (at most
+    one horizon) less the time the ego needs to drive there at the speed limit, and the longest one
+    counts. Without it a plan that crawls towards a person who waits for the car keeps scoring more
+    progress than stopping and letting them cross (a dev trace, ncap_cpna: 2.7 m/s held for 4 s, then
+    0.5 m/s for 9 s).
     """
     horizon = (y.shape[-1] - 1) * HISTORY_INTERVAL
     pace = np.abs(np.diff(y, axis=-1)).max(axis=(1, 3), keepdims=True)[..., 0] / HISTORY_INTERVAL  # (B,1,K)

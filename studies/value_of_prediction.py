@@ -28,6 +28,7 @@ from __future__ import annotations
 import argparse
 import functools
 import hashlib
+import importlib.util
 import json
 import sys
 import time
@@ -83,7 +84,7 @@ def _probe_digest(intention: str, predictor: str) -> str:
     return digest.hexdigest()
 
 
-PLAN_SCORING_FILES: tuple[Path, ...] = (Path(__file__).resolve().parents[1] / "agents" / "plans.py",)
+PLAN_SCORING_FILES: tuple[Path, ...] = (Path(str(importlib.util.find_spec("agents.plans").origin)),)
 """Source of the plan scoring, part of the fingerprint of every row whose predictor gives plan forecasts."""
 
 

@@ -115,11 +115,12 @@ NO_COST = PredictiveYieldingConfig(
 """Progress (and collisions) only: the difference to `UNCHARGED` is each plan's meeting cost."""
 
 
-def _reactive_pedestrian(plans: int, steps_off: list[bool]) -> np.ndarray:
-    """(1, P, 1, 12, 2) futures of someone at the kerb 50 m ahead who steps off only under some plans."""
+def _reactive_pedestrian(plans: int, steps_off: list[bool], y: float = 4.0, pace: float = 1.4) -> np.ndarray:
+    """(1, P, 1, 12, 2) futures of someone `y` m from the lane's centre, 50 m ahead, who steps off (at
+    `pace` m/s) only under some plans."""
     t = np.arange(1, 13)
-    waiting = np.stack([np.full(12, 50.0), np.full(12, 4.0)], axis=-1)
-    walking = np.stack([np.full(12, 50.0), 4.0 - 1.4 * 0.4 * np.maximum(t - 2, 0)], axis=-1)
+    waiting = np.stack([np.full(12, 50.0), np.full(12, y)], axis=-1)
+    walking = np.stack([np.full(12, 50.0), y - pace * 0.4 * np.maximum(t - 2, 0)], axis=-1)
     futures = np.stack([walking if off else waiting for off in steps_off])
     assert futures.shape[0] == plans
     return futures[None, :, None]
@@ -151,7 +152,7 @@ def test_a_plan_that_only_defers_a_waiting_pedestrian_is_charged_the_conflict() 
 
 def test_a_deferring_plan_is_charged_the_wait_still_to_come() -> None:
     # The slow plan leaves her on the kerb, 4 m from the lane's centre: after the horizon she still has to
-    # walk across the whole corridor (at the 1.4 m/s the other plans show her walking), which the car waits
+    # walk across the whole corridor (at the 1.4 m/s the forecasts show her walking), which the car waits
     # for unless it needs longer to get there; the wait is priced at the progress it would have bought.
     cfg = PredictiveYieldingConfig()
     acc = np.array([1.5, 0.0, -2.5])
@@ -228,3 +229,25 @@ def test_the_wait_to_come_stops_the_crawl_towards_a_pedestrian_who_waits_for_the
     # 11.6 s with it.
     seed = 2143213018
     assert _time_to_pass(seed) < _time_to_pass(seed, plan_deferred_wait=False) - 5.0
+
+
+def test_the_wait_is_capped_at_the_horizon_and_kept_per_pedestrian() -> None:
+    # Two people the slow plan defers: a brisk one 4 m out (1.4 m/s) and a slow one 2.2 m out (0.4 m/s),
+    # whose walk across (10 s) is longer than the 4.8 s horizon and is cut to it before the drive there is
+    # taken off. Each walks at their own pace; the longer wait counts.
+    cfg = PredictiveYieldingConfig()
+    acc = np.array([1.5, 0.0, -2.5])
+    brisk = _reactive_pedestrian(3, [True, True, False])
+    slow = _reactive_pedestrian(3, [True, True, False], y=2.2, pace=0.4)
+    both = np.concatenate([brisk, slow], axis=2)
+    present = np.ones((1, 2), bool)
+    speed = np.array([13.0])
+    cost_only, _ = score_plans(speed, acc, both, present, COST_ONLY)
+    full, _ = score_plans(speed, acc, both, present, cfg)
+    travelled = score_plans(speed, acc, both, present, NO_COST)[0][0, 2] / cfg.plan_weights.progress
+    band = cfg.ego_width / 2 + cfg.pedestrian_radius + cfg.lateral_margin
+    drive = (50.0 - travelled - (cfg.ego_length / 2 + cfg.pedestrian_radius)) / cfg.speed_limit
+    walks = np.array([(4.0 + band) / 1.4, min((2.2 + band) / 0.4, 12 * 0.4)])
+    assert walks[1] > walks[0] and (2.2 + band) / 0.4 - drive > 12 * 0.4  # the cap binds
+    wait = (walks - drive).max()
+    assert full[0, 2] == pytest.approx(cost_only[0, 2] - cfg.plan_weights.progress * cfg.speed_limit * wait)
