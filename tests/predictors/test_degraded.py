@@ -189,9 +189,26 @@ def test_a_plan_row_goes_stale_when_the_plan_scoring_code_changes(
     assert not vop.scores_plans("cvm") and not vop.scores_plans("none")
     probe = vop._probe_digest.__wrapped__
     before = probe("none", "oracle-noise=1.5"), probe("none", "cvm")
+    source = vop.PLAN_SCORING_FILES[0].read_text()
     edited = tmp_path / "plans.py"
-    edited.write_bytes(vop.PLAN_SCORING_FILES[0].read_bytes() + b"\n")
+    edited.write_text(source.replace("SUBSTEPS = 4", "SUBSTEPS = 4  # per interval\nUNUSED = 1"))
     monkeypatch.setattr(vop, "PLAN_SCORING_FILES", (edited,))
     after = probe("none", "oracle-noise=1.5"), probe("none", "cvm")
     assert after[0] != before[0]
     assert after[1] == before[1]
+
+
+def test_the_plan_scoring_stamp_ignores_docstrings_comments_and_layout() -> None:
+    """A docstring edit once sent the committed value table stale: only code edits move the stamp."""
+    import studies.value_of_prediction as vop
+
+    source = vop.PLAN_SCORING_FILES[0].read_text()
+    stamp = vop.code_without_docs(source)
+    assert '"""' not in stamp and "#" not in stamp
+    reworded = source.replace("Ego integration steps", "Integration steps of the ego").replace(
+        "\n        collision |= (", "\n        # a forecast overlap\n        collision |= ("
+    )
+    assert reworded != source
+    assert vop.code_without_docs(reworded + "\n\n") == stamp
+    assert vop.code_without_docs(source.replace("WALKING_ACROSS = 0.2", "WALKING_ACROSS = 0.3")) != stamp
+    assert vop.code_without_docs('def f():\n    """Only a docstring."""\n') == "def f():\n    pass"
