@@ -115,6 +115,12 @@ NO_COST = PredictiveYieldingConfig(
 """Progress (and collisions) only: the difference to `UNCHARGED` is each plan's meeting cost."""
 
 
+def _steps_off_unless_slowed() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Go, keep and slow plans at 13 m/s, and one pedestrian who steps off under go and keep only."""
+    acc = np.array([1.5, 0.0, -2.5])
+    return acc, _reactive_pedestrian(3, [True, True, False]), np.ones((1, 1), bool), np.array([13.0])
+
+
 def _reactive_pedestrian(plans: int, steps_off: list[bool], y: float = 4.0, pace: float = 1.4) -> np.ndarray:
     """(1, P, 1, 12, 2) futures of someone `y` m from the lane's centre, 50 m ahead, who steps off (at
     `pace` m/s) only under some plans."""
@@ -130,10 +136,7 @@ def test_a_plan_that_only_defers_a_waiting_pedestrian_is_charged_the_conflict() 
     # A Euro NCAP pedestrian steps off when the car comes close: under go and keep she walks into the lane
     # ahead, under slow she keeps waiting. Scored on the horizon alone the slow plan looks free of conflict
     # (the car crept up to her for seconds in a dev trace); charged the mildest meeting's cost, it is not.
-    acc = np.array([1.5, 0.0, -2.5])
-    paths = _reactive_pedestrian(3, [True, True, False])
-    present = np.ones((1, 1), bool)
-    speed = np.array([13.0])
+    acc, paths, present, speed = _steps_off_unless_slowed()
     before, _ = score_plans(speed, acc, paths, present, UNCHARGED)
     after, _ = score_plans(speed, acc, paths, present, COST_ONLY)
     np.testing.assert_array_equal(after[0, :2], before[0, :2])  # the plans that meet her: as they were
@@ -155,10 +158,7 @@ def test_a_deferring_plan_is_charged_the_wait_still_to_come() -> None:
     # walk across the whole corridor (at the 1.4 m/s the forecasts show her walking), which the car waits
     # for unless it needs longer to get there; the wait is priced at the progress it would have bought.
     cfg = PredictiveYieldingConfig()
-    acc = np.array([1.5, 0.0, -2.5])
-    paths = _reactive_pedestrian(3, [True, True, False])
-    present = np.ones((1, 1), bool)
-    speed = np.array([13.0])
+    acc, paths, present, speed = _steps_off_unless_slowed()
     cost_only, _ = score_plans(speed, acc, paths, present, COST_ONLY)
     full, _ = score_plans(speed, acc, paths, present, cfg)
     np.testing.assert_array_equal(full[0, :2], cost_only[0, :2])  # go and keep meet her: no wait charged
