@@ -71,7 +71,8 @@ def _probe_digest(intention: str, predictor: str) -> str:
         digest.update(WEIGHTS_PATH.read_bytes())
     if scores_plans(predictor):
         # Likewise a change to how plans are scored may leave every short probe as it was (the wait charge
-        # of `agents.plans` did), so the scoring code and the policy's defaults are part of the stamp.
+        # of `agents.plans` did), so the scoring code (its code alone: a reworded docstring moves no episode)
+        # and the policy's defaults are part of the stamp.
         from agents.config import PredictiveYieldingConfig
 
         for path in PLAN_SCORING_FILES:
