@@ -183,6 +183,11 @@ class PredictiveYieldingConfig(YieldingConfig):
     """Also charge a plan that defers someone the time the ego will still wait, after the horizon, for them
     to walk across its corridor (at the progress weight and the speed limit: the progress that time would
     have bought); without it a slowed car crawls towards a pedestrian who waits for it to stand."""
+    plan_arrival: bool = True
+    """Under a slowing plan, time the conflict check's arrival at each pedestrian on the plan's braking
+    profile (`agents.predictive`); without it the check assumes the car drives on, brakes for people the
+    plan's forecast has crossing well ahead of it, a little harder than the plan, and so can keep a
+    pedestrian who waits for the car on the kerb (a self-defeating forecast)."""
     plan_switch_margin: float = 0.1
     """Hysteresis: switch to a better plan only if it scores at least this much higher (reward units; 0.1
     = 2 m of progress at the default weights)."""

@@ -36,8 +36,12 @@ variant lets a confident prediction *release* it, within the law, and trusts pre
   margin and a minimum hold time, lifted when the plan held forecasts a collision), the conflict check runs
   on the chosen plan's paths, and a keep or slow plan caps the acceleration. The prediction and the
   car's intent are then consistent: with paths for a car that holds its speed, the car that chose its
-  speed on them chattered (a dev run: −8 / +2 m/s² alternating for 9 s on signalised_red_light). The
-  legal rules and the constant-velocity guard still hold: a plan only chooses among safe speeds.
+  speed on them chattered (a dev run: −8 / +2 m/s² alternating for 9 s on signalised_red_light). Under a
+  slowing plan the conflict check times the car's arrival on the plan's braking profile, not as if it
+  drove on (`plan_arrival`): otherwise it braked for someone the plan's forecast has crossing well ahead,
+  a little harder than the plan, and a pedestrian who steps off on the car's time to arrive stayed on the
+  kerb until it stood (a dev trace, ncap_cpna). The legal rules and the constant-velocity guard still
+  hold: a plan only chooses among safe speeds.
 
 With no predictor (no ``crossing_intention``, no ``predicted_paths``) it is exactly `YieldingPolicy`:
 conservative, ready to give way to anyone at the kerb by a zebra who is not walking away. Registered as
@@ -54,7 +58,7 @@ import numpy as np
 
 from agents.config import PredictiveYieldingConfig
 from agents.plans import choose_plans, score_plans
-from agents.view import ObsLike, View
+from agents.view import ObsLike, View, braking_travel_time
 from agents.yielding import YieldingPolicy
 from predictors.learned_intent_weights import CROSSING_INTENT_BOUND_KEY
 from predictors.oracle import PLAN_ACCELERATIONS_KEY, PLAN_PATHS_KEY
@@ -125,9 +129,32 @@ class PredictiveYielding(YieldingPolicy):
         self._plan = chosen
         self.plan_history.append(chosen.copy())
         paths = self._plan_paths[np.arange(b), chosen]
-        a = super()._acceleration(replace(view, paths=paths))
         cap = self._plan_acc[chosen]
+        self._plan_braking = np.where(cap < 0.0, -cap, np.nan)
+        try:
+            a = super()._acceleration(replace(view, paths=paths))
+        finally:
+            self._plan_braking = None
         return np.where(cap <= 0.0, np.minimum(a, cap), a)
+
+    def _arrival_times(
+        self, view: View, s_arr: np.ndarray, s_clr: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        # Under a slowing plan the car brakes at the plan's rate: the conflict check on that plan's forecast
+        # asks when the car arrives on that profile, not if it drove on.
+        t_arr, t_clr = super()._arrival_times(view, s_arr, s_clr)
+        braking = getattr(self, "_plan_braking", None)
+        if braking is None or not self.config.plan_arrival:
+            return t_arr, t_clr
+        slowing = np.isfinite(braking)[:, None]
+        if not slowing.any():
+            return t_arr, t_clr
+        rate = np.where(np.isfinite(braking), braking, 1.0)[:, None]
+        v = view.speed[:, None]
+        return (
+            np.where(slowing, braking_travel_time(s_arr, v, rate), t_arr),
+            np.where(slowing, braking_travel_time(s_clr, v, rate), t_clr),
+        )
 
     def release_bound(self) -> np.ndarray | float:
         """The release threshold in force: the predictor's published bound, else `release_threshold`."""

@@ -181,6 +181,15 @@ def travel_time(dist: np.ndarray, v: np.ndarray, accel: float, v_max: float) -> 
     return np.where(d <= d1, t_acc, t_cru)
 
 
+def braking_travel_time(dist: np.ndarray, v: np.ndarray, decel: np.ndarray) -> np.ndarray:
+    """Time to cover `dist` (≤ 0 gives 0) from speed v braking at `decel` (> 0); inf if it stops short."""
+    d = np.maximum(dist, 0.0)
+    v = np.broadcast_to(v, d.shape)
+    disc = v * v - 2.0 * decel * d
+    t = (v - np.sqrt(np.maximum(disc, 0.0))) / decel
+    return np.where(d <= 0.0, 0.0, np.where(disc >= 0.0, t, np.inf))
+
+
 def corridor_interval(py: np.ndarray, vy: np.ndarray, half_width: float) -> tuple[np.ndarray, np.ndarray]:
     """When a constant-velocity pedestrian is inside |y| ≤ half_width: (t_in, t_out); t_in = inf if never."""
     inside = np.abs(py) <= half_width

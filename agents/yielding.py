@@ -340,9 +340,7 @@ class YieldingPolicy:
         behind = x_in + r < -front
         s_arr = x_in - r - front
         s_clr = x_in + r + front
-        vmax = max(cfg.speed_limit, EPS)
-        t_arr = travel_time(s_arr, v[:, None], cfg.go_acceleration, vmax)
-        t_clr = travel_time(s_clr, v[:, None], cfg.go_acceleration, vmax)
+        t_arr, t_clr = self._arrival_times(view, s_arr, s_clr)
         conflict = (
             view.present
             & ~behind
@@ -357,6 +355,21 @@ class YieldingPolicy:
         )
         ped_target = np.where(conflict, np.maximum(ped_target, 0.0), np.inf)
         return legal_target, ped_target.min(axis=1, initial=np.inf)
+
+    def _arrival_times(
+        self, view: View, s_arr: np.ndarray, s_clr: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """(B, K) times the ego's front reaches and its rear clears each pedestrian's entry point (hook).
+
+        Here as if it drives on, accelerating at `go_acceleration` up to the speed limit.
+        """
+        cfg = self.config
+        v = view.speed[:, None]
+        vmax = max(cfg.speed_limit, EPS)
+        return (
+            travel_time(s_arr, v, cfg.go_acceleration, vmax),
+            travel_time(s_clr, v, cfg.go_acceleration, vmax),
+        )
 
     paths_replace_constant_velocity: ClassVar[bool] = False
     """With ``predicted_paths``, check conflicts on the paths alone (True) or on their union with constant
