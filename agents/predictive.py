@@ -149,7 +149,9 @@ class PredictiveYielding(YieldingPolicy):
         slowing = np.isfinite(braking)[:, None]
         if not slowing.any():
             return t_arr, t_clr
-        rate = np.where(np.isfinite(braking), braking, 1.0)[:, None]
+        # No faster than the car can brake (a scenario may give it less than the slow plan's rate).
+        rate = np.minimum(np.where(np.isfinite(braking), braking, 1.0), self.config.ego.max_deceleration)
+        rate = rate[:, None]
         v = view.speed[:, None]
         return (
             np.where(slowing, braking_travel_time(s_arr, v, rate), t_arr),

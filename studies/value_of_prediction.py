@@ -76,7 +76,7 @@ def _probe_digest(intention: str, predictor: str) -> str:
         from agents.config import PredictiveYieldingConfig
 
         for path in PLAN_SCORING_FILES:
-            digest.update(code_without_docs(path.read_text()).encode())
+            digest.update(code_without_docs(path.read_text(encoding="utf-8")).encode())
         digest.update(repr(PredictiveYieldingConfig()).encode())
     for scenario in probe_scenarios(predictor):
         spec = RolloutSpec(scenario=scenario, policy=POLICY, intention=intention, predictor=predictor)

@@ -293,11 +293,42 @@ def test_under_a_slowing_plan_the_conflict_check_times_the_plans_profile() -> No
     np.testing.assert_array_equal(policy._arrival_times(view, s, s + 5.0)[0], go[0])
 
 
+def test_the_braking_profile_is_no_faster_than_the_car_can_brake() -> None:
+    # A car that brakes at 1 m/s² at most (a scenario may say so) reaches a pedestrian 40 m ahead from
+    # 13 m/s even on the slow plan (-2.5 m/s²): its arrival is timed at the car's own limit.
+    weak = PredictiveYielding(
+        PredictiveYieldingConfig(
+            ego=dataclasses.replace(PredictiveYieldingConfig().ego, max_deceleration=1.0)
+        )
+    )
+    weak._plan_braking = np.array([2.5])
+    s = np.array([[40.0]])
+    t_arr, _ = weak._arrival_times(_view_at(13.0), s, s + 5.0)
+    assert t_arr[0, 0] == pytest.approx(13.0 - np.sqrt(13.0**2 - 2 * 1.0 * 40.0))
+
+
+def test_the_plan_braking_is_set_only_while_the_rules_run() -> None:
+    env = OracleTrajectory(gym.make("crossing_env/Crossing-v0", scenario="ncap_cpna"))
+    policy = PredictiveYielding()
+    policy.reset(seed=7)
+    obs, _ = env.reset(seed=7)
+    for _ in range(40):
+        obs, *_ = env.step(policy(obs))
+        assert policy._plan_braking is None
+    assert len(policy.plan_history) == 40
+
+
 def test_a_slowing_plan_is_followed_at_its_own_rate_so_its_forecast_comes_true() -> None:
     # The value study's ncap_cpna episode where the slow plan was chosen because its forecast had her
     # crossing well ahead, but the rules braked for her on that forecast a little harder than the plan
     # (-2.58 against -2.5 m/s²): her step-off is a threshold on the car's time to arrive, so she stayed on the
-    # kerb until the car stood. Measured: time to pass 12.6 s timed as driving on, 11.3 s on the plan's
-    # profile (she steps off while the car still rolls).
+    # kerb until the car stood. Measured: time to pass 12.6 s timed as driving on, 8.1 s on the plan's
+    # profile (she steps off while the car still rolls); no collision, at least 2.5 m apart in both.
+    spec = RolloutSpec(
+        scenario="ncap_cpna", policy="predictive_yielding", intention="none", predictor="oracle"
+    )
     seed = 1493894659
-    assert _time_to_pass(seed) < _time_to_pass(seed, plan_arrival=False) - 1.0
+    fixed = run_spec(spec, seed).result
+    driving_on = run_spec(dataclasses.replace(spec, policy_overrides={"plan_arrival": False}), seed).result
+    assert fixed["time_to_pass"] < driving_on["time_to_pass"] - 3.0
+    assert not fixed["collision"] and fixed["min_separation"] > 1.0
