@@ -77,6 +77,8 @@ class PredictiveYielding(YieldingPolicy):
         self._bound: np.ndarray | None = None
         self._plan_paths: np.ndarray | None = None
         self._plan_acc: np.ndarray | None = None
+        self._plan_braking: np.ndarray | None = None
+        """(B,) deceleration of the plan where it slows (NaN elsewhere); set only while the rules run."""
 
     def reset(self, seed: int | None = None) -> None:
         """Forget the yielding state and the plan being held."""
@@ -143,16 +145,15 @@ class PredictiveYielding(YieldingPolicy):
         # Under a slowing plan the car brakes at the plan's rate: the conflict check on that plan's forecast
         # asks when the car arrives on that profile, not if it drove on.
         t_arr, t_clr = super()._arrival_times(view, s_arr, s_clr)
-        braking = getattr(self, "_plan_braking", None)
+        braking = self._plan_braking
         if braking is None or not self.config.plan_arrival:
             return t_arr, t_clr
-        slowing = np.isfinite(braking)[:, None]
+        slowing = np.isfinite(braking)
         if not slowing.any():
             return t_arr, t_clr
         # No faster than the car can brake (a scenario may give it less than the slow plan's rate).
-        rate = np.minimum(np.where(np.isfinite(braking), braking, 1.0), self.config.ego.max_deceleration)
-        rate = rate[:, None]
-        v = view.speed[:, None]
+        rate = np.minimum(np.where(slowing, braking, 1.0), self.config.ego.max_deceleration)[:, None]
+        v, slowing = view.speed[:, None], slowing[:, None]
         return (
             np.where(slowing, braking_travel_time(s_arr, v, rate), t_arr),
             np.where(slowing, braking_travel_time(s_clr, v, rate), t_clr),

@@ -203,7 +203,8 @@ def test_a_plan_that_passes_her_first_is_not_charged_and_the_worst_deferral_coun
     assert after[0, 2] == pytest.approx(before[0, 2] + worst)
 
 
-def _time_to_pass(seed: int, **overrides: object) -> float:
+def _episode(seed: int, **overrides: object) -> dict:
+    """The result of an ncap_cpna episode of `predictive_yielding` under the path oracle."""
     spec = RolloutSpec(
         scenario="ncap_cpna",
         policy="predictive_yielding",
@@ -211,7 +212,11 @@ def _time_to_pass(seed: int, **overrides: object) -> float:
         predictor="oracle",
         policy_overrides=dict(overrides),
     )
-    return float(run_spec(spec, seed).result["time_to_pass"])
+    return run_spec(spec, seed).result
+
+
+def _time_to_pass(seed: int, **overrides: object) -> float:
+    return float(_episode(seed, **overrides)["time_to_pass"])
 
 
 def test_the_path_oracle_car_no_longer_creeps_up_to_an_ncap_pedestrian() -> None:
@@ -324,11 +329,8 @@ def test_a_slowing_plan_is_followed_at_its_own_rate_so_its_forecast_comes_true()
     # (-2.58 against -2.5 m/s²): her step-off is a threshold on the car's time to arrive, so she stayed on the
     # kerb until the car stood. Measured: time to pass 12.6 s timed as driving on, 8.1 s on the plan's
     # profile (she steps off while the car still rolls); no collision, at least 2.5 m apart in both.
-    spec = RolloutSpec(
-        scenario="ncap_cpna", policy="predictive_yielding", intention="none", predictor="oracle"
-    )
     seed = 1493894659
-    fixed = run_spec(spec, seed).result
-    driving_on = run_spec(dataclasses.replace(spec, policy_overrides={"plan_arrival": False}), seed).result
+    fixed = _episode(seed)
+    driving_on = _episode(seed, plan_arrival=False)
     assert fixed["time_to_pass"] < driving_on["time_to_pass"] - 3.0
     assert not fixed["collision"] and fixed["min_separation"] > 1.0
