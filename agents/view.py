@@ -149,6 +149,8 @@ def follow(view: View, cfg: DrivingConfig) -> np.ndarray:
         & (np.abs(veh[..., VehicleColumn.DY]) < cfg.lane_width / 2)
         & (dx > 0.0)
     )
+    if not ahead.any():  # nobody to follow (most steps): the same +inf, without the IDM arithmetic
+        return np.full(view.speed.shape, np.inf)
     gap = dx - cfg.ego_length / 2 - veh[..., VehicleColumn.LENGTH] / 2
     gap = np.where(ahead, gap, np.inf)
     j = np.argmin(gap, axis=1)
@@ -230,6 +232,8 @@ def stop_acceleration(
     """
     v = view.speed
     s = np.asarray(distance, dtype=np.float64)
+    if np.isinf(s).all() and (s > 0.0).all():  # no target (most steps): +inf, as below, without the rest
+        return np.full(np.broadcast_shapes(s.shape, v.shape), np.inf)
     v_allow = np.sqrt(2.0 * decel * np.maximum(s, 0.0))
     with np.errstate(divide="ignore", invalid="ignore"):
         # Past the target (s < 0) it is too late for a planned stop: brake fully. Within the last 5 cm the

@@ -192,6 +192,10 @@ class YieldingPolicy:
         fresh = (view.past >= 0.0) | (view.to_stop > 20.0)
         offers[fresh] = np.nan
         tracked = np.isfinite(offers[..., 0])  # (B, D)
+        standing = (view.speed < 0.1) & (view.to_stop < 3.0) & ~legal_xing
+        if not tracked.any() and not (waiting & standing[:, None]).any():
+            # Nobody followed and no newcomer (most steps): no timer runs, nothing to update.
+            return waiting & (0.0 >= self.config.offer_timeout - 1e-9)
         match = np.full((b, k), -1)
         if tracked.any() and view.tracks is not None:
             same = (view.tracks[:, :, None] == offers[:, None, :, 3]) & waiting[:, :, None]  # (B, K, D)
@@ -206,7 +210,6 @@ class YieldingPolicy:
                 <= self.config.decline_match_radius
             )
             match = np.where(close, nearest, -1)
-        standing = (view.speed < 0.1) & (view.to_stop < 3.0) & ~legal_xing
         still = np.hypot(view.vx, view.vy) < self.config.still_speed
         # Newcomers while the car stands get a free tracking slot each (free slots in order, per element).
         new = waiting & (match < 0) & standing[:, None]
@@ -306,7 +309,9 @@ class YieldingPolicy:
             candidates=zebra & crossing_ahead & view.present & ~view.on_road & ~settled & ~declined,
         )
 
-        # 2. Conflict check (constant velocity ∪ predicted path).
+        # 2. Conflict check (constant velocity ∪ predicted path): only present pedestrians can conflict.
+        if not view.present.any():
+            return legal_target, np.full(v.shape, np.inf)
         t_in, t_out = corridor_interval(view.py, view.vy, hw)
         x_in = view.px + view.vx * np.where(np.isfinite(t_in), np.minimum(t_in, cfg.horizon), 0.0)
         if use_pred and view.paths is not None:
@@ -396,15 +401,17 @@ class YieldingPolicy:
         if veh.shape[1] == 0:
             return np.full(view.speed.shape, np.inf)
         front = cfg.ego_length / 2
+        speed = np.hypot(veh[..., VehicleColumn.VX], veh[..., VehicleColumn.VY])
+        standing = (veh[..., VehicleColumn.PRESENCE] > 0.5) & (speed < 0.5)
+        if not standing.any():  # no standing vehicle, no occluder: the same +inf, computed cheaply
+            return np.full(view.speed.shape, np.inf)
         near_rel, far_rel = self._crossing_span(view)
         veh_front = veh[..., VehicleColumn.DX] + veh[..., VehicleColumn.LENGTH] / 2
-        speed = np.hypot(veh[..., VehicleColumn.VX], veh[..., VehicleColumn.VY])
         lateral = np.abs(veh[..., VehicleColumn.DY])
         beside = (lateral >= cfg.lane_width / 2) & (lateral <= 2.5 * cfg.lane_width)
         occluder = (
-            (veh[..., VehicleColumn.PRESENCE] > 0.5)
+            standing
             & beside
-            & (speed < 0.5)
             & (veh_front >= near_rel - cfg.occlusion_window)
             & (veh_front <= far_rel)
             & (veh_front > -front)

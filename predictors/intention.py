@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 import gymnasium as gym
 import numpy as np
@@ -242,6 +242,34 @@ def crossing_intention(
     Returns:
         (K,) float32 in [0, 1], 0 for absent slots.
     """
+    return _probability(
+        _intention_parts(obs, road_map, config, rate_table, red_rate_table), horizon, ahead_only, config
+    )
+
+
+class _IntentionParts(NamedTuple):
+    """What `crossing_intention` computes before the horizon enters (shared by both wrapper outputs)."""
+
+    present: np.ndarray
+    on_road: np.ndarray
+    ahead: np.ndarray
+    t_pass: np.ndarray
+    t_kerb: np.ndarray
+    """Seconds until the pedestrian reaches the kerb."""
+    t_enter: np.ndarray
+    """Seconds from the kerb onto the road."""
+    p_intent: np.ndarray
+    rate: np.ndarray
+
+
+def _intention_parts(
+    obs: dict[str, np.ndarray],
+    road_map: RoadMap,
+    config: IntentionConfig,
+    rate_table: np.ndarray,
+    red_rate_table: np.ndarray,
+) -> _IntentionParts:
+    """The horizon-free parts of `crossing_intention` for one observation."""
     c = config
     ped = obs[PEDESTRIANS_KEY].astype(np.float64)
     veh = obs[VEHICLES_KEY]
@@ -256,7 +284,6 @@ def crossing_intention(
     # Time until the ego's rear passes the pedestrian's x (the event needs the pedestrian ahead of it).
     ahead = dx + half_len
     t_pass = np.where(ahead <= 0.0, 0.0, ahead / max(speed, 1e-3))
-    window_end = np.minimum(horizon, t_pass) if ahead_only else np.full_like(t_pass, horizon)
 
     # Where the pedestrian is relative to the nearer kerb and how fast it walks towards the road.
     south = dy < road_map.kerb_low
@@ -302,12 +329,21 @@ def crossing_intention(
     if road_map.signalised and cars_green:  # cars green: pedestrians at the crossing face red
         at_crossing = np.abs(cross_dx) <= road_map.crossing_half_width + 1.0
         rate = np.where(at_crossing, np.interp(gap, GAP_GRID, red_rate_table), rate)
-    window = np.maximum(window_end - t_kerb - t_enter, 0.0)
-    p_start = p_intent * -np.expm1(-rate * window)
+    return _IntentionParts(present, on_road, ahead, t_pass, t_kerb, t_enter, p_intent, rate)
 
-    on_road_p = (ahead > 0.0) * c.on_road_ahead if ahead_only else np.full_like(ahead, c.on_road_ahead)
-    prob = np.where(on_road, on_road_p, p_start)  # all factors lie in [0, 1]
-    return (prob * present).astype(np.float32)
+
+def _probability(
+    parts: _IntentionParts, horizon: float, ahead_only: bool, config: IntentionConfig
+) -> np.ndarray:
+    """The crossing probability within `horizon` from the shared parts (see `crossing_intention`)."""
+    window_end = np.minimum(horizon, parts.t_pass) if ahead_only else np.full_like(parts.t_pass, horizon)
+    window = np.maximum(window_end - parts.t_kerb - parts.t_enter, 0.0)
+    p_start = parts.p_intent * -np.expm1(-parts.rate * window)
+    ahead = parts.ahead
+    road = config.on_road_ahead
+    on_road_p = (ahead > 0.0) * road if ahead_only else np.full_like(ahead, road)
+    prob = np.where(parts.on_road, on_road_p, p_start)  # all factors lie in [0, 1]
+    return (prob * parts.present).astype(np.float32)
 
 
 class RoadMapWrapper(gym.ObservationWrapper):
@@ -369,18 +405,10 @@ class CrossingIntention(RoadMapWrapper, gym.utils.RecordConstructorArgs):
     def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """The observation with ``crossing_intention`` and ``crossing_intent`` added."""
         out = dict(observation)
-        out[CROSSING_INTENTION_KEY] = crossing_intention(
-            observation, self.horizon, self._map, self.config, self._rates, self._red_rates
-        )
-        raw = crossing_intention(
-            observation,
-            INTENT_HORIZON,
-            self._map,
-            self.config,
-            self._rates,
-            self._red_rates,
-            ahead_only=False,
-        )
+        # Both outputs share everything but the horizon (computed once: the wrapper runs every step).
+        parts = _intention_parts(observation, self._map, self.config, self._rates, self._red_rates)
+        out[CROSSING_INTENTION_KEY] = _probability(parts, self.horizon, True, self.config)
+        raw = _probability(parts, INTENT_HORIZON, False, self.config)
         present = observation[PEDESTRIANS_KEY][:, PedestrianColumn.PRESENCE] > 0.5
         out[CROSSING_INTENT_KEY] = (platt(raw, self._calibration) * present).astype(np.float32)
         out[CROSSING_INTENT_BOUND_KEY] = self._bound.copy()
