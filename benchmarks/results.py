@@ -326,9 +326,10 @@ def _render_predictor_speed(data: dict[str, Any]) -> str:
     return _script_block(data, "predictor_speed", timing)
 
 
-FIRST_RESULT_PEER = "a46388878c983527f029739f111404d37662aec9"
-"""The commit before the third round of issue 26's speed work: `first_result` runs it interleaved as the
-peer, so that the gain is measured against it in one run (the machines' speed moves between runs)."""
+FIRST_RESULT_PEER = "44021167967a451550f641750f421922b3c6735c"
+"""The commit before the fourth round of issue 26's speed work (the per-step paths of the rules and the
+intention wrapper): `first_result` runs it interleaved as the peer, so that the gain is measured against it
+in one run (the machines' speed moves between runs)."""
 
 
 def _measure_first_result() -> dict[str, Any]:
