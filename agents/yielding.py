@@ -114,6 +114,7 @@ class YieldingPolicy:
         self._tracks: list[dict[int, TrackMemory]] = []
         self._clock = np.zeros(0)
         self._last_to_stop = np.zeros(0)
+        self._span: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self.duty: LegalDuty | None = None
         """The legal-yield state of the last call (`LegalDuty`), for `agents.shield.YieldingShield`."""
 
@@ -238,9 +239,19 @@ class YieldingPolicy:
         return self._committed & needs_line
 
     def _crossing_span(self, view: View) -> tuple[np.ndarray, np.ndarray]:
-        """(near, far) edges of the crossing, (B, 1) each, relative to the ego's centre along x."""
+        """(near, far) edges of the crossing, (B, 1) each, relative to the ego's centre along x.
+
+        Kept for the view it was computed from (the same arrays, also in a copy of the view with other
+        paths): several rules of one step ask for it.
+        """
+        span = self._span
+        if span is not None and span[0] is view.to_stop and span[1] is view.past:
+            return span[2], span[3]
         front = self.config.ego_length / 2
-        return front + view.to_stop[:, None] + self.config.stop_line_offset, -view.past[:, None] - front
+        near = front + view.to_stop[:, None] + self.config.stop_line_offset
+        far = -view.past[:, None] - front
+        self._span = (view.to_stop, view.past, near, far)
+        return near, far
 
     def _towards_road(self, view: View) -> np.ndarray:
         """(B, K) each pedestrian's speed towards the carriageway (m/s; negative: away from it)."""
@@ -371,10 +382,8 @@ class YieldingPolicy:
         cfg = self.config
         v = view.speed[:, None]
         vmax = max(cfg.speed_limit, EPS)
-        return (
-            travel_time(s_arr, v, cfg.go_acceleration, vmax),
-            travel_time(s_clr, v, cfg.go_acceleration, vmax),
-        )
+        both = travel_time(np.stack((s_arr, s_clr)), v, cfg.go_acceleration, vmax)  # one call, elementwise
+        return both[0], both[1]
 
     paths_replace_constant_velocity: ClassVar[bool] = False
     """With ``predicted_paths``, check conflicts on the paths alone (True) or on their union with constant
@@ -448,19 +457,20 @@ class YieldingPolicy:
         veh = view.vehicles
         if veh.shape[1] == 0:
             return np.full(view.speed.shape, np.inf)
+        moving = (
+            (veh[..., VehicleColumn.PRESENCE] > 0.5)
+            & (veh[..., VehicleColumn.VX] > cfg.moving_speed)
+            & (veh[..., VehicleColumn.DX] > 0.0)
+            & ((view.zebra > 0.5) & (view.past < 0.0))[:, None]
+        )
+        if not moving.any():  # no moving vehicle ahead before a zebra: no candidate, the same +inf
+            return np.full(view.speed.shape, np.inf)
         near_rel, far_rel = self._crossing_span(view)
         veh_front = veh[..., VehicleColumn.DX] + veh[..., VehicleColumn.LENGTH] / 2
         dy = veh[..., VehicleColumn.DY]
         adjacent = (np.abs(dy) >= cfg.lane_width / 2) & (dy > cfg.road_right) & (dy < cfg.half_left)
         candidate = (
-            (veh[..., VehicleColumn.PRESENCE] > 0.5)
-            & adjacent
-            & (veh[..., VehicleColumn.VX] > cfg.moving_speed)
-            & (veh[..., VehicleColumn.DX] > 0.0)
-            & (veh_front >= near_rel - cfg.no_overtaking_zone)
-            & (veh_front <= far_rel)
-            & (view.zebra[:, None] > 0.5)
-            & (view.past[:, None] < 0.0)
+            moving & adjacent & (veh_front >= near_rel - cfg.no_overtaking_zone) & (veh_front <= far_rel)
         )
         if not candidate.any():
             return np.full(view.speed.shape, np.inf)

@@ -8,14 +8,18 @@ import pytest
 
 from benchmarks.intention import brier, cautious_action, roc_auc
 from crossing_env.env import CrossingEnv
+from crossing_env.observation import PedestrianColumn
 from crossing_env.pedestrians.quantum import disjunction_probabilities
 from predictors.intention import (
+    INTENT_HORIZON,
     ClassicalIntention,
     CrossingIntention,
     IntentionConfig,
     QLBIntention,
+    crossing_intention,
     look_probability,
 )
+from predictors.learned_intent_weights import platt
 from scenarios.config import PedestrianConfig, ScenarioConfig
 
 
@@ -145,3 +149,23 @@ def test_benchmark_metrics() -> None:
     # One tie between a positive and a negative counts one half: 8.5 of 9 pairs.
     assert roc_auc(np.array([0.1, 0.2, 0.8, 0.9, 0.7, 0.7]), y) == pytest.approx(8.5 / 9)
     assert brier(y, y) == 0.0 and brier(1 - y, y) == 1.0
+
+
+@pytest.mark.parametrize("wrapper", [QLBIntention, ClassicalIntention])
+def test_the_wrappers_shared_parts_give_the_functions_own_values(wrapper: type[CrossingIntention]) -> None:
+    # The wrapper computes the horizon-free parts once for both outputs; each must equal a separate call of
+    # `crossing_intention`, bit for bit, on real observations with pedestrians about.
+    env = wrapper(_env())
+    obs, _ = env.reset(seed=3)
+    compared = 0
+    for _ in range(60):
+        obs, *_ = env.step(np.zeros(1, dtype=np.float32))
+        args = (env._map, env.config, env._rates, env._red_rates)
+        near = crossing_intention(obs, env.horizon, *args)
+        raw = crossing_intention(obs, INTENT_HORIZON, *args, ahead_only=False)
+        present = obs["pedestrians"][:, PedestrianColumn.PRESENCE] > 0.5
+        np.testing.assert_array_equal(obs["crossing_intention"], near)
+        intent = (platt(raw, env._calibration) * present).astype(np.float32)
+        np.testing.assert_array_equal(obs["crossing_intent"], intent)
+        compared += int(present.sum())
+    assert compared > 0
