@@ -13,11 +13,13 @@ columns are read by their names in `crossing_env.observation`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from agents.config import DrivingConfig
 from crossing_env.env import acceleration_to_action
@@ -175,12 +177,42 @@ def travel_time(dist: np.ndarray, v: np.ndarray, accel: float, v_max: float) -> 
     if accel <= 0.0:
         with np.errstate(divide="ignore"):
             return np.where(d <= 0.0, 0.0, np.where(v > EPS, d / np.maximum(v, EPS), np.inf))
-    vm = np.maximum(v_max, v)
-    t1 = (vm - v) / accel
-    d1 = 0.5 * (v + vm) * t1
-    t_acc = (-v + np.sqrt(v * v + 2.0 * accel * d)) / accel
-    t_cru = t1 + (d - d1) / np.maximum(vm, EPS)
-    return np.where(d <= d1, t_acc, t_cru)
+    out = np.empty(d.shape)
+    flat = (np.ascontiguousarray(x, dtype=np.float64).reshape(-1) for x in (d, v))
+    _travel_time_kernel(*flat, float(accel), float(v_max), out.reshape(-1))
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _nan_max(a: float, b: float) -> float:
+    """`np.maximum` of two floats: NaN if either is NaN, `b` when they compare equal (as numpy: ±0)."""
+    if a != a or b != b:
+        return math.nan
+    return a if a > b else b
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _nan_min(a: float, b: float) -> float:
+    """`np.minimum` of two floats: NaN if either is NaN, `b` when they compare equal (as numpy: ±0)."""
+    if a != a or b != b:
+        return math.nan
+    return a if a < b else b
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _travel_time_kernel(d: np.ndarray, v: np.ndarray, accel: float, v_max: float, out: np.ndarray) -> None:
+    """`travel_time` for accel > 0 on flat arrays, bit-identical to its numpy form.
+
+    Accelerate from v to max(v_max, v), then cruise; the same floating-point operations in the same order.
+    """
+    for i in range(d.shape[0]):
+        vi, di = v[i], d[i]
+        vm = _nan_max(v_max, vi)
+        t1 = (vm - vi) / accel
+        d1 = 0.5 * (vi + vm) * t1
+        t_acc = (-vi + np.sqrt(vi * vi + 2.0 * accel * di)) / accel
+        t_cru = t1 + (di - d1) / _nan_max(vm, EPS)
+        out[i] = t_acc if di <= d1 else t_cru
 
 
 def braking_travel_time(dist: np.ndarray, v: np.ndarray, decel: np.ndarray) -> np.ndarray:
@@ -194,15 +226,36 @@ def braking_travel_time(dist: np.ndarray, v: np.ndarray, decel: np.ndarray) -> n
 
 def corridor_interval(py: np.ndarray, vy: np.ndarray, half_width: float) -> tuple[np.ndarray, np.ndarray]:
     """When a constant-velocity pedestrian is inside |y| ≤ half_width: (t_in, t_out); t_in = inf if never."""
-    inside = np.abs(py) <= half_width
-    moving = np.abs(vy) > 1e-3
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ta = (-half_width - py) / vy
-        tb = (half_width - py) / vy
-    t_in = np.where(moving, np.maximum(np.minimum(ta, tb), 0.0), np.where(inside, 0.0, np.inf))
-    t_out = np.where(moving, np.maximum(ta, tb), np.where(inside, np.inf, -np.inf))
-    never = t_out < t_in
-    return np.where(never, np.inf, t_in), np.where(never, -np.inf, t_out)
+    py, vy = np.broadcast_arrays(py, vy)
+    t_in, t_out = np.empty(py.shape), np.empty(py.shape)
+    flat = (np.ascontiguousarray(x, dtype=np.float64).reshape(-1) for x in (py, vy))
+    _corridor_kernel(*flat, float(half_width), t_in.reshape(-1), t_out.reshape(-1))
+    return t_in, t_out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _corridor_kernel(
+    py: np.ndarray, vy: np.ndarray, half_width: float, t_in: np.ndarray, t_out: np.ndarray
+) -> None:
+    """`corridor_interval` on flat arrays, bit-identical to its numpy form.
+
+    A pedestrian moving across (|vy| > 1e-3) is inside between the two edge crossings, one standing inside
+    always, one standing outside never; the same floating-point operations in the same order.
+    """
+    for i in range(py.shape[0]):
+        p, w = py[i], vy[i]
+        if abs(w) > 1e-3:
+            ta = (-half_width - p) / w
+            tb = (half_width - p) / w
+            enter = _nan_max(_nan_min(ta, tb), 0.0)
+            leave = _nan_max(ta, tb)
+        elif abs(p) <= half_width:
+            enter, leave = 0.0, math.inf
+        else:
+            enter, leave = math.inf, -math.inf
+        never = leave < enter
+        t_in[i] = math.inf if never else enter
+        t_out[i] = -math.inf if never else leave
 
 
 def path_interval(
@@ -234,14 +287,30 @@ def stop_acceleration(
     s = np.asarray(distance, dtype=np.float64)
     if np.isinf(s).all() and (s > 0.0).all():  # no target (most steps): +inf, as below, without the rest
         return np.full(np.broadcast_shapes(s.shape, v.shape), np.inf)
-    v_allow = np.sqrt(2.0 * decel * np.maximum(s, 0.0))
-    with np.errstate(divide="ignore", invalid="ignore"):
+    s, v = np.broadcast_arrays(s, v)
+    out = np.empty(s.shape)
+    flat = (np.ascontiguousarray(x, dtype=np.float64).reshape(-1) for x in (s, v))
+    _stop_kernel(*flat, float(decel), float(gain), float(max_decel), out.reshape(-1))
+    return out
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _stop_kernel(
+    s: np.ndarray, v: np.ndarray, decel: float, gain: float, max_decel: float, out: np.ndarray
+) -> None:
+    """`stop_acceleration` on flat arrays, bit-identical to its numpy form (the same operations in order)."""
+    for i in range(s.shape[0]):
+        si, vi = s[i], v[i]
+        v_allow = np.sqrt(2.0 * decel * _nan_max(si, 0.0))
         # Past the target (s < 0) it is too late for a planned stop: brake fully. Within the last 5 cm the
         # distance is floored, so a creeping car is not asked for an absurd deceleration.
-        a_req = np.where(s >= 0.0, v * v / (2.0 * np.maximum(s, 0.05)), np.where(v > 0.05, np.inf, 0.0))
-    track = gain * (v_allow - v)
-    acc = np.where(a_req > decel, -a_req, track)
-    acc = np.where(np.isfinite(s), acc, np.inf)
-    # At the target: hold still.
-    acc = np.where((s <= 0.3) & (v <= 0.1), -decel, acc)
-    return np.maximum(acc, -max_decel)
+        if si >= 0.0:
+            a_req = vi * vi / (2.0 * _nan_max(si, 0.05))
+        else:
+            a_req = math.inf if vi > 0.05 else 0.0
+        acc = -a_req if a_req > decel else gain * (v_allow - vi)
+        if not np.isfinite(si):
+            acc = math.inf
+        if si <= 0.3 and vi <= 0.1:  # at the target: hold still
+            acc = -decel
+        out[i] = _nan_max(acc, -max_decel)

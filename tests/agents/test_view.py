@@ -1,4 +1,4 @@
-"""The rules' helpers in `agents.view`: their early returns give what the general path gives."""
+"""The rules' helpers in `agents.view`: early returns and compiled kernels give what numpy gave."""
 
 from __future__ import annotations
 
@@ -8,7 +8,14 @@ import gymnasium as gym
 import numpy as np
 
 from agents.config import YieldingConfig
-from agents.view import View, follow, parse_observation, stop_acceleration
+from agents.view import (
+    View,
+    corridor_interval,
+    follow,
+    parse_observation,
+    stop_acceleration,
+    travel_time,
+)
 from crossing_env.observation import VehicleColumn
 
 
@@ -50,3 +57,66 @@ def test_following_nobody_gives_what_the_general_path_gives() -> None:
     general = follow(dataclasses.replace(view, vehicles=lead), cfg)
     assert nobody.shape == (2,) and np.isposinf(nobody).all()
     assert general[0] == nobody[0] and np.isfinite(general[1])
+
+
+# The numpy forms the compiled kernels replaced, kept here as the reference they must match bit for bit.
+def _travel_time_numpy(dist: np.ndarray, v: np.ndarray, accel: float, v_max: float) -> np.ndarray:
+    d = np.maximum(dist, 0.0)
+    v = np.broadcast_to(v, d.shape)
+    with np.errstate(invalid="ignore"):  # inf - inf among the edge cases
+        vm = np.maximum(v_max, v)
+        t1 = (vm - v) / accel
+        d1 = 0.5 * (v + vm) * t1
+        t_acc = (-v + np.sqrt(v * v + 2.0 * accel * d)) / accel
+        t_cru = t1 + (d - d1) / np.maximum(vm, 1e-6)
+    return np.where(d <= d1, t_acc, t_cru)
+
+
+def _corridor_numpy(py: np.ndarray, vy: np.ndarray, half_width: float) -> tuple[np.ndarray, np.ndarray]:
+    inside = np.abs(py) <= half_width
+    moving = np.abs(vy) > 1e-3
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ta = (-half_width - py) / vy
+        tb = (half_width - py) / vy
+    t_in = np.where(moving, np.maximum(np.minimum(ta, tb), 0.0), np.where(inside, 0.0, np.inf))
+    t_out = np.where(moving, np.maximum(ta, tb), np.where(inside, np.inf, -np.inf))
+    never = t_out < t_in
+    return np.where(never, np.inf, t_in), np.where(never, -np.inf, t_out)
+
+
+def _stop_numpy(s: np.ndarray, v: np.ndarray, decel: float, gain: float, max_decel: float) -> np.ndarray:
+    v_allow = np.sqrt(2.0 * decel * np.maximum(s, 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        a_req = np.where(s >= 0.0, v * v / (2.0 * np.maximum(s, 0.05)), np.where(v > 0.05, np.inf, 0.0))
+    acc = np.where(a_req > decel, -a_req, gain * (v_allow - v))
+    acc = np.where(np.isfinite(s), acc, np.inf)
+    acc = np.where((s <= 0.3) & (v <= 0.1), -decel, acc)
+    return np.maximum(acc, -max_decel)
+
+
+def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    return a.shape == b.shape and a.dtype == b.dtype and bool((a.view(np.int64) == b.view(np.int64)).all())
+
+
+def _edge_values(rng: np.random.Generator, n: int, loc: float, scale: float) -> np.ndarray:
+    """Random values with the edge cases mixed in: ±inf, NaN, ±0 and values at the kernels' thresholds."""
+    x = rng.normal(loc, scale, n)
+    edges = [np.inf, -np.inf, np.nan, 0.0, -0.0, 1e-3, -1e-3, 5e-4, 0.05, 0.1, 0.3, 1.65, -1.65]
+    x[rng.choice(n, len(edges), replace=False)] = edges
+    return x
+
+
+def test_the_compiled_kernels_give_the_numpy_forms_bits() -> None:
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        py, vy = _edge_values(rng, 400, 0.0, 4.0), _edge_values(rng, 400, 0.0, 1.5)
+        vy[rng.random(400) < 0.3] = 0.0
+        got = corridor_interval(py.reshape(20, 20), vy.reshape(20, 20), 1.65)
+        for a, b in zip(got, _corridor_numpy(py.reshape(20, 20), vy.reshape(20, 20), 1.65), strict=True):
+            assert _same_bits(a, b)
+        dist = _edge_values(rng, 400, 20.0, 30.0).reshape(2, 20, 10)
+        v = np.abs(_edge_values(rng, 20, 8.0, 5.0)).reshape(20, 1)
+        assert _same_bits(travel_time(dist, v, 2.0, 13.9), _travel_time_numpy(dist, v, 2.0, 13.9))
+        s, speed = _edge_values(rng, 400, 10.0, 20.0), np.abs(_edge_values(rng, 400, 6.0, 5.0))
+        view = dataclasses.replace(_batch([0.0]), speed=speed)
+        assert _same_bits(stop_acceleration(view, s, 2.5, 1.5, 8.0), _stop_numpy(s, speed, 2.5, 1.5, 8.0))
