@@ -171,7 +171,10 @@ def follow(view: View, cfg: DrivingConfig) -> np.ndarray:
 
 
 def travel_time(dist: np.ndarray, v: np.ndarray, accel: float, v_max: float) -> np.ndarray:
-    """Time to cover `dist` (≥ 0; ≤ 0 gives 0) from speed v accelerating at `accel` up to `v_max`."""
+    """Time to cover `dist` (≥ 0; ≤ 0 gives 0) from speed v accelerating at `accel` up to `v_max`.
+
+    Computed in float64 (the views `parse_observation` builds are float64).
+    """
     d = np.maximum(dist, 0.0)
     v = np.broadcast_to(v, d.shape)
     if accel <= 0.0:
@@ -185,17 +188,27 @@ def travel_time(dist: np.ndarray, v: np.ndarray, accel: float, v_max: float) -> 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _nan_max(a: float, b: float) -> float:
-    """`np.maximum` of two floats: NaN if either is NaN, `b` when they compare equal (as numpy: ±0)."""
-    if a != a or b != b:
-        return math.nan
+    """`np.maximum` of two floats, as numpy gives it.
+
+    A NaN operand is returned itself (the first if both are NaN); when they compare equal (±0), `b`.
+    """
+    if a != a:
+        return a
+    if b != b:
+        return b
     return a if a > b else b
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _nan_min(a: float, b: float) -> float:
-    """`np.minimum` of two floats: NaN if either is NaN, `b` when they compare equal (as numpy: ±0)."""
-    if a != a or b != b:
-        return math.nan
+    """`np.minimum` of two floats, as numpy gives it.
+
+    A NaN operand is returned itself (the first if both are NaN); when they compare equal (±0), `b`.
+    """
+    if a != a:
+        return a
+    if b != b:
+        return b
     return a if a < b else b
 
 
@@ -225,7 +238,10 @@ def braking_travel_time(dist: np.ndarray, v: np.ndarray, decel: np.ndarray) -> n
 
 
 def corridor_interval(py: np.ndarray, vy: np.ndarray, half_width: float) -> tuple[np.ndarray, np.ndarray]:
-    """When a constant-velocity pedestrian is inside |y| ≤ half_width: (t_in, t_out); t_in = inf if never."""
+    """When a constant-velocity pedestrian is inside |y| ≤ half_width: (t_in, t_out); t_in = inf if never.
+
+    Computed in float64 (the views `parse_observation` builds are float64).
+    """
     py, vy = np.broadcast_arrays(py, vy)
     t_in, t_out = np.empty(py.shape), np.empty(py.shape)
     flat = (np.ascontiguousarray(x, dtype=np.float64).reshape(-1) for x in (py, vy))
@@ -281,11 +297,12 @@ def stop_acceleration(
 
     Below the braking profile v = sqrt(2·decel·s) it returns the profile-tracking term (usually larger
     than the cruise term, so `min` with it is neutral); above it, the exact constant deceleration v²/(2s),
-    so a late stop brakes only as hard as needed (up to `max_decel`).
+    so a late stop brakes only as hard as needed (up to `max_decel`). Computed in float64 (the views
+    `parse_observation` builds are float64).
     """
     v = view.speed
     s = np.asarray(distance, dtype=np.float64)
-    if np.isinf(s).all() and (s > 0.0).all():  # no target (most steps): +inf, as below, without the rest
+    if np.isinf(s).all() and (s > 0.0).all() and max_decel == max_decel:  # no target (most steps): +inf
         return np.full(np.broadcast_shapes(s.shape, v.shape), np.inf)
     s, v = np.broadcast_arrays(s, v)
     out = np.empty(s.shape)

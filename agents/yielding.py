@@ -242,7 +242,8 @@ class YieldingPolicy:
         """(near, far) edges of the crossing, (B, 1) each, relative to the ego's centre along x.
 
         Kept for the view it was computed from (the same arrays, also in a copy of the view with other
-        paths): several rules of one step ask for it.
+        paths): several rules of one step ask for it. A view is a snapshot: its arrays are never changed
+        in place (`parse_observation` builds new ones every call).
         """
         span = self._span
         if span is not None and span[0] is view.to_stop and span[1] is view.past:

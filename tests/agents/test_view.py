@@ -85,10 +85,10 @@ def _corridor_numpy(py: np.ndarray, vy: np.ndarray, half_width: float) -> tuple[
 
 
 def _stop_numpy(s: np.ndarray, v: np.ndarray, decel: float, gain: float, max_decel: float) -> np.ndarray:
-    v_allow = np.sqrt(2.0 * decel * np.maximum(s, 0.0))
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore"):  # inf - inf among the edge cases
+        v_allow = np.sqrt(2.0 * decel * np.maximum(s, 0.0))
         a_req = np.where(s >= 0.0, v * v / (2.0 * np.maximum(s, 0.05)), np.where(v > 0.05, np.inf, 0.0))
-    acc = np.where(a_req > decel, -a_req, gain * (v_allow - v))
+        acc = np.where(a_req > decel, -a_req, gain * (v_allow - v))
     acc = np.where(np.isfinite(s), acc, np.inf)
     acc = np.where((s <= 0.3) & (v <= 0.1), -decel, acc)
     return np.maximum(acc, -max_decel)
@@ -120,3 +120,31 @@ def test_the_compiled_kernels_give_the_numpy_forms_bits() -> None:
         s, speed = _edge_values(rng, 400, 10.0, 20.0), np.abs(_edge_values(rng, 400, 6.0, 5.0))
         view = dataclasses.replace(_batch([0.0]), speed=speed)
         assert _same_bits(stop_acceleration(view, s, 2.5, 1.5, 8.0), _stop_numpy(s, speed, 2.5, 1.5, 8.0))
+
+
+def test_the_kernels_match_numpy_on_every_pair_of_edge_values_and_on_exact_ties() -> None:
+    # Values that must land together (s = 0.3 with v <= 0.1, s < 0 with v = 0.05) and exact ties of the
+    # kernels' comparisons (a_req = decel, d = d1), which random draws almost never hit.
+    edges = np.array([np.inf, -np.inf, np.nan, -np.nan, 0.0, -0.0, 0.04, 0.05, 0.06, 0.1, 0.3, 0.31])
+    edges = np.concatenate([edges, -edges[4:], [1.0, 5.0, 13.9, 20.0, 1e-3, -1e-3, 1.65, -1.65]])
+    a, b = (x.ravel() for x in np.meshgrid(edges, edges))
+    view = dataclasses.replace(_batch([0.0]), speed=b)
+    for decel, gain, max_decel in ((2.5, 1.5, 8.0), (2.0, 2.0, 6.0), (2.5, 1.5, np.nan)):
+        got = stop_acceleration(view, a, decel, gain, max_decel)
+        assert _same_bits(got, _stop_numpy(a, b, decel, gain, max_decel))
+    ties = np.array([5.0, 4.0, np.sqrt(12.5)])  # v*v / (2*max(s, 0.05)) == 2.5 at s = 5, 3.2 and 2.5
+    s_ties = np.array([5.0, 3.2, 2.5])
+    view = dataclasses.replace(_batch([0.0]), speed=ties)
+    want = _stop_numpy(s_ties, ties, 2.5, 1.5, 8.0)
+    assert _same_bits(stop_acceleration(view, s_ties, 2.5, 1.5, 8.0), want)
+    for py, vy in ((a, b), (b, a)):  # every edge value as position and as speed, against every other
+        for got, want in zip(corridor_interval(py, vy, 1.65), _corridor_numpy(py, vy, 1.65), strict=True):
+            assert _same_bits(got, want)
+    # d exactly at the end of the acceleration phase (d = d1), from the same operations as the kernel.
+    v = np.array([0.0, 3.0, 8.5, 13.0, 13.9, 15.0])
+    vm = np.maximum(13.9, v)
+    d1 = 0.5 * (v + vm) * ((vm - v) / 2.0)
+    for d in (d1, np.nextafter(d1, np.inf), np.nextafter(d1, -np.inf), a[: v.size]):
+        assert _same_bits(travel_time(d, v, 2.0, 13.9), _travel_time_numpy(d, v, 2.0, 13.9))
+    dist, speed = a.reshape(-1, len(edges)), np.abs(b.reshape(-1, len(edges)))
+    assert _same_bits(travel_time(dist, speed, 2.0, 13.9), _travel_time_numpy(dist, speed, 2.0, 13.9))
