@@ -187,29 +187,29 @@ def travel_time(dist: np.ndarray, v: np.ndarray, accel: float, v_max: float) -> 
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _nan_max(a: float, b: float) -> float:
-    """`np.maximum` of two floats, as numpy gives it.
+def _numpy_pick(a: float, b: float, a_wins: bool) -> float:
+    """What `np.maximum` / `np.minimum` return for two floats, given whether `a` compares better.
 
-    A NaN operand is returned itself (the first if both are NaN); when they compare equal (±0), `b`.
+    A NaN operand is returned itself (the first if both are NaN); otherwise `a` if it wins, else `b` (so
+    `b` on a tie, as numpy: ±0).
     """
     if a != a:
         return a
     if b != b:
         return b
-    return a if a > b else b
+    return a if a_wins else b
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _nan_max(a: float, b: float) -> float:
+    """`np.maximum` of two floats, as numpy gives it (`_numpy_pick`)."""
+    return _numpy_pick(a, b, a > b)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _nan_min(a: float, b: float) -> float:
-    """`np.minimum` of two floats, as numpy gives it.
-
-    A NaN operand is returned itself (the first if both are NaN); when they compare equal (±0), `b`.
-    """
-    if a != a:
-        return a
-    if b != b:
-        return b
-    return a if a < b else b
+    """`np.minimum` of two floats, as numpy gives it (`_numpy_pick`)."""
+    return _numpy_pick(a, b, a < b)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
