@@ -326,10 +326,10 @@ def _render_predictor_speed(data: dict[str, Any]) -> str:
     return _script_block(data, "predictor_speed", timing)
 
 
-FIRST_RESULT_PEER = "44021167967a451550f641750f421922b3c6735c"
-"""The commit before the fourth round of issue 26's speed work (the per-step paths of the rules and the
-intention wrapper): `first_result` runs it interleaved as the peer, so that the gain is measured against it
-in one run (the machines' speed moves between runs)."""
+FIRST_RESULT_PEER = "7cf605a633c5f1195a36a2530e4f1fd810e4a808"
+"""The code as it was when issue 26 was filed (its default table had fewer scenarios): `first_result` runs it
+interleaved as the peer, so that the gain is measured against it in one run on the same machine (the
+issue's 5.5 episodes/s was measured on another, busier one, and the machines' speed moves between runs)."""
 
 
 def _measure_first_result() -> dict[str, Any]:
