@@ -181,9 +181,13 @@ def travel_time(dist: np.ndarray, v: np.ndarray, accel: float, v_max: float) -> 
         with np.errstate(divide="ignore"):
             return np.where(d <= 0.0, 0.0, np.where(v > EPS, d / np.maximum(v, EPS), np.inf))
     out = np.empty(d.shape)
-    flat = (np.ascontiguousarray(x, dtype=np.float64).reshape(-1) for x in (d, v))
-    _travel_time_kernel(*flat, float(accel), float(v_max), out.reshape(-1))
+    _travel_time_kernel(*_flat(d, v), float(accel), float(v_max), out.reshape(-1))
     return out
+
+
+def _flat(*arrays: np.ndarray) -> list[np.ndarray]:
+    """Contiguous flat float64 copies (or views) of same-shaped arrays, as the kernels below take them."""
+    return [np.ascontiguousarray(x, dtype=np.float64).reshape(-1) for x in arrays]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -191,7 +195,8 @@ def _numpy_pick(a: float, b: float, a_wins: bool) -> float:
     """What `np.maximum` / `np.minimum` return for two floats, given whether `a` compares better.
 
     A NaN operand is returned itself (the first if both are NaN); otherwise `a` if it wins, else `b` (so
-    `b` on a tie, as numpy: ±0).
+    `b` on a tie, as numpy: ±0). Not `crossing_env.safety.geometry`'s `_nan_max` / `_nan_min`, which keep
+    `a` on a tie: the sign of a zero would differ from the numpy forms these kernels replace.
     """
     if a != a:
         return a
@@ -244,8 +249,7 @@ def corridor_interval(py: np.ndarray, vy: np.ndarray, half_width: float) -> tupl
     """
     py, vy = np.broadcast_arrays(py, vy)
     t_in, t_out = np.empty(py.shape), np.empty(py.shape)
-    flat = (np.ascontiguousarray(x, dtype=np.float64).reshape(-1) for x in (py, vy))
-    _corridor_kernel(*flat, float(half_width), t_in.reshape(-1), t_out.reshape(-1))
+    _corridor_kernel(*_flat(py, vy), float(half_width), t_in.reshape(-1), t_out.reshape(-1))
     return t_in, t_out
 
 
@@ -302,12 +306,11 @@ def stop_acceleration(
     """
     v = view.speed
     s = np.asarray(distance, dtype=np.float64)
-    if np.isinf(s).all() and (s > 0.0).all() and max_decel == max_decel:  # no target (most steps): +inf
+    if (s == np.inf).all() and max_decel == max_decel:  # no target (most steps): +inf, as the kernel gives
         return np.full(np.broadcast_shapes(s.shape, v.shape), np.inf)
     s, v = np.broadcast_arrays(s, v)
     out = np.empty(s.shape)
-    flat = (np.ascontiguousarray(x, dtype=np.float64).reshape(-1) for x in (s, v))
-    _stop_kernel(*flat, float(decel), float(gain), float(max_decel), out.reshape(-1))
+    _stop_kernel(*_flat(s, v), float(decel), float(gain), float(max_decel), out.reshape(-1))
     return out
 
 

@@ -114,7 +114,6 @@ class YieldingPolicy:
         self._tracks: list[dict[int, TrackMemory]] = []
         self._clock = np.zeros(0)
         self._last_to_stop = np.zeros(0)
-        self._span: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
         self.duty: LegalDuty | None = None
         """The legal-yield state of the last call (`LegalDuty`), for `agents.shield.YieldingShield`."""
 
@@ -239,20 +238,9 @@ class YieldingPolicy:
         return self._committed & needs_line
 
     def _crossing_span(self, view: View) -> tuple[np.ndarray, np.ndarray]:
-        """(near, far) edges of the crossing, (B, 1) each, relative to the ego's centre along x.
-
-        Kept for the view it was computed from (the same arrays, also in a copy of the view with other
-        paths): several rules of one step ask for it. A view is a snapshot: its arrays are never changed
-        in place (`parse_observation` builds new ones every call).
-        """
-        span = self._span
-        if span is not None and span[0] is view.to_stop and span[1] is view.past:
-            return span[2], span[3]
+        """(near, far) edges of the crossing, (B, 1) each, relative to the ego's centre along x."""
         front = self.config.ego_length / 2
-        near = front + view.to_stop[:, None] + self.config.stop_line_offset
-        far = -view.past[:, None] - front
-        self._span = (view.to_stop, view.past, near, far)
-        return near, far
+        return front + view.to_stop[:, None] + self.config.stop_line_offset, -view.past[:, None] - front
 
     def _towards_road(self, view: View) -> np.ndarray:
         """(B, K) each pedestrian's speed towards the carriageway (m/s; negative: away from it)."""
