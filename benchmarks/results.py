@@ -186,6 +186,18 @@ def _render_safe_rl_summary(data: dict[str, Any]) -> str:
     return render_summary(data)
 
 
+def _measure_safe_rl_long() -> dict[str, Any]:
+    """`studies/safe_rl_long.py`: the Lagrangian learner trained longer (trains what is missing in
+    ``runs/safe_rl_long``), its curves and greedy checkpoints."""
+    return _study_json("studies.safe_rl_long", "safe_rl_long")
+
+
+def _render_safe_rl_long(data: dict[str, Any]) -> str:
+    from studies.safe_rl_long import render_body
+
+    return render_body(data)
+
+
 def _measure_predictors() -> dict[str, Any]:
     """Every trajectory predictor on ETH/UCY and SDD from the shipped weights (`studies.predictor_tables`)."""
     from studies.predictor_tables import measure
@@ -528,6 +540,13 @@ ENTRIES: dict[str, Entry] = {
             REPO / "README.md",
             fingerprint=learned_fingerprint,
             data="safe_rl",
+        ),
+        Entry(
+            "safe_rl_long",
+            "slow",
+            _measure_safe_rl_long,
+            _render_safe_rl_long,
+            REPO / "docs" / "rl.md",
         ),
         Entry(
             "intention",

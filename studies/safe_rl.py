@@ -75,6 +75,14 @@ SHIELD_MAX = "agents.registry:shield_max_policy"
 """The envelope-max reference (`agents.registry.shield_max_policy`: `yielding` + the full residual through
 the shield, not learned): the shielded learner's starting point, evaluated beside it as ``shield_max``."""
 METRICS = ("return", "cost", "collision", "compliance", "censored_delay")
+RANGES = {
+    "collision": (0.0, 1.0),
+    "compliance": (0.0, 1.0),
+    "cost": (0.0, np.inf),
+    "multiplier": (0.0, np.inf),
+}
+"""Where a metric's values can lie: the figures clip their bands to it (three seeds give t-intervals that
+reach past a rate's 0 and 1); the CSVs keep the intervals as computed."""
 
 
 def train(runs: Path, algos: tuple[str, ...], seeds: tuple[int, ...]) -> dict[str, float]:
@@ -162,7 +170,7 @@ def curves(
 
 
 def plot_curves(rows: list[dict[str, Any]], png: Path) -> None:
-    """Two rows of panels (against steps, against wall-clock), one per metric; mean and 95 % band."""
+    """Two rows of panels (against steps, against wall-clock), one per metric; mean and clipped 95 % band."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -180,18 +188,29 @@ def plot_curves(rows: list[dict[str, Any]], png: Path) -> None:
                     continue
                 x = np.array([p["x"] for p in pts])
                 y = np.array([p["mean"] for p in pts])
-                lo = np.array([p["low"] for p in pts])
-                hi = np.array([p["high"] for p in pts])
+                lo, hi = np.clip(
+                    [[p["low"] for p in pts], [p["high"] for p in pts]], *RANGES.get(m, (-np.inf, np.inf))
+                )
                 line = ax.plot(x, y, style, marker="o", ms=3, label=algo)[0]
                 ax.fill_between(x, lo, hi, color=line.get_color(), alpha=0.2)
             ax.set_title(titles[m])
             ax.set_xlabel("env steps" if axis == "step" else "wall-clock s (2 cores, shared)")
             ax.grid(alpha=0.3)
     axes[0, 0].legend()
-    fig.suptitle("Training episodes (exploration on), 3 seeds: mean and 95 % t-interval across seeds")
+    fig.suptitle(
+        "Training episodes (exploration on), 3 seeds: mean and 95 % t-interval across seeds"
+        " (clipped to the metric's range)"
+    )
     fig.tight_layout()
     fig.savefig(png, dpi=80)
     plt.close(fig)
+
+
+def replot(figures: Path) -> None:
+    """Draw ``rl_curves.png`` again from the measured ``rl_curves.csv`` beside it (no episodes run)."""
+    with (figures / "rl_curves.csv").open() as fh:
+        rows = [{**r, **{k: float(r[k]) for k in ("x", "mean", "low", "high")}} for r in csv.DictReader(fh)]
+    plot_curves(rows, figures / "rl_curves.png")
 
 
 def _evaluate(
@@ -490,8 +509,14 @@ def main(argv: list[str] | None = None) -> int:
     )
     p.add_argument("--workers", type=int, default=2, help="evaluation worker processes")
     p.add_argument("--ship", action="store_true", help="copy the chosen policies into agents/weights")
+    p.add_argument(
+        "--replot", action="store_true", help="only draw rl_curves.png again from rl_curves.csv in --figures"
+    )
     p.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results" / "safe_rl_measured.json")
     a = p.parse_args(argv)
+    if a.replot:
+        replot(a.figures)
+        return 0
     times = {} if a.no_train else train(a.runs, ALGOS, SEEDS)
     t0 = time.perf_counter()
     result = analyse(a.runs, a.figures, a.episodes, a.check_episodes, a.workers, a.safety_episodes)
