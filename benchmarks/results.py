@@ -673,14 +673,18 @@ def rendered_block(entry: Entry, fingerprint: str | None) -> str:
     return note + entry.render(data)
 
 
+_BLOCK = r"\n(?:(.*?)\n)?"
+"""Between the markers: a newline, then the block and its newline (none yet in a new document)."""
+
+
 def committed_block(entry: Entry) -> str:
     """What the document holds between the entry's markers now."""
     begin, end = _markers(entry.name)
     text = entry.document.read_text(encoding="utf-8")
-    match = re.search(re.escape(begin) + r"\n(.*?)\n" + re.escape(end), text, flags=re.S)
+    match = re.search(re.escape(begin) + _BLOCK + re.escape(end), text, flags=re.S)
     if match is None:
         raise ValueError(f"{entry.document}: no {begin} ... {end} block")
-    return match.group(1)
+    return match.group(1) or ""
 
 
 def write_block(entry: Entry, block: str) -> bool:
@@ -688,7 +692,7 @@ def write_block(entry: Entry, block: str) -> bool:
     begin, end = _markers(entry.name)
     text = entry.document.read_text(encoding="utf-8")
     new = re.sub(
-        re.escape(begin) + r"\n.*?\n" + re.escape(end),
+        re.escape(begin) + _BLOCK + re.escape(end),
         lambda _: f"{begin}\n{block}\n{end}",
         text,
         count=1,

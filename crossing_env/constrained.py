@@ -32,9 +32,10 @@ class CostBudget:
 
     per_episode: float = 2.0
     """Budget d on the expected sum of ``info["cost"]`` over an episode. The rule-based `yielding` policy
-    averages about 1.4 over the built-in scenarios (near-miss steps that children running out and the NCAP
-    cases make unavoidable; no collision, no violated obligation); one collision alone costs about 17 (1 plus
-    the near-miss steps before it), one violated obligation 1."""
+    stays below it (its mean episode cost, measured beside the learners in docs/rl.md, is near-miss steps
+    that children running out and the NCAP cases make unavoidable); one collision alone costs several times
+    the budget (1 plus the near-miss steps before it), one violated obligation 1. A budget this size still
+    admits a collision every several episodes (docs/rl.md, "Where PPO-Lagrangian stalls")."""
 
 
 class Multiplier:

@@ -181,7 +181,9 @@ def plot(rows: list[dict[str, Any]], greedy: dict[str, Any], seeds: tuple[int, .
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import FuncFormatter
 
+    thousands = FuncFormatter(lambda x, _pos: f"{x / 1000:.0f}k")
     colours = dict(zip(BUDGETS, ("tab:blue", "tab:red"), strict=False))
     fig, axes = plt.subplots(2, 4, figsize=(16, 7.5))
     titles = {"cost": "episode cost (budgets dotted)", "collision": "collision rate",
@@ -236,9 +238,11 @@ def plot(rows: list[dict[str, Any]], greedy: dict[str, Any], seeds: tuple[int, .
         pts = [r for r in rows if r["metric"] == "multiplier" and r["budget"] == budget]
         for s in seeds:
             ax.plot([p["x"] for p in pts], [p[f"seed_{s}"] for p in pts], color=colours[budget], lw=1)
-    ax.set_title("Lagrange multiplier λ (each seed)")
+    ax.set_title("Lagrange multiplier λ (each seed, budgets' colours)")
     ax.set_xlabel("env steps of PPO")
     ax.grid(alpha=0.3)
+    for ax in axes.flat:
+        ax.xaxis.set_major_formatter(thousands)
     fig.suptitle(
         f"PPO-Lagrangian, {LONG_TIMESTEPS:,} steps, {len(seeds)} seeds per budget: training episodes"
         " (exploration on; band: 95 % t-interval across seeds, clipped to the metric's range) and greedy"
@@ -247,6 +251,14 @@ def plot(rows: list[dict[str, Any]], greedy: dict[str, Any], seeds: tuple[int, .
     fig.tight_layout()
     fig.savefig(png, dpi=80)
     plt.close(fig)
+
+
+def replot(figures: Path, results: Path) -> None:
+    """Draw ``rl_lagrangian_long.png`` again from the measured CSV and results JSON (no episodes run)."""
+    with (figures / "rl_lagrangian_long.csv").open() as fh:
+        rows = [{k: (v if k == "metric" else float(v)) for k, v in r.items()} for r in csv.DictReader(fh)]
+    data = json.loads(results.read_text(encoding="utf-8"))
+    plot(rows, data["checkpoints"], tuple(data["seeds"]), figures / "rl_lagrangian_long.png")
 
 
 def analyse(runs: Path, figures: Path, episodes: int, workers: int) -> dict[str, Any]:
@@ -321,8 +333,9 @@ def render_body(data: dict[str, Any]) -> str:
             lines.append(f"| {budget} | {int(n):,} | {cells} |")
     lines += [
         "",
-        "The training episodes of the last 20,000 steps (exploration on) and the end of each run (three runs"
-        " at once on the shared 2-core machine):",
+        "The training episodes of the last 20,000 steps (exploration on) and the end of each run; wall-clock"
+        " of the PPO phase (the registered runs trained side by side, six at once, on the shared 2-core"
+        " machine):",
         "",
         "| budget | seed | episode cost | collision rate | λ at the end | wall-clock s |",
         "|---|---|---|---|---|---|",
@@ -347,7 +360,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--episodes", type=int, default=8, help="greedy episodes per scenario and checkpoint")
     p.add_argument("--workers", type=int, default=2, help="evaluation worker processes")
     p.add_argument("--out", type=Path, default=REPO / "benchmarks" / "results" / "safe_rl_long_measured.json")
+    p.add_argument(
+        "--replot",
+        type=Path,
+        metavar="RESULTS_JSON",
+        help="only draw the figure again from rl_lagrangian_long.csv in --figures and this results JSON",
+    )
     a = p.parse_args(argv)
+    if a.replot:
+        replot(a.figures, a.replot)
+        return 0
     times = {} if a.no_train else train(a.runs, safe_rl.SEEDS)
     t0 = time.perf_counter()
     result = analyse(a.runs, a.figures, a.episodes, a.workers)

@@ -145,3 +145,17 @@ def test_one_measurement_feeds_both_predictor_blocks(tmp_path: Path, monkeypatch
     for entry in entries.values():
         assert results.rendered_block(entry, "b" * 16).startswith("> **Stale:**")
     assert results.main(["--check"]) == 1
+
+
+def test_a_new_empty_block_is_filled_and_read_back(tmp_path: Path) -> None:
+    doc = tmp_path / "doc.md"
+    doc.write_text("intro\n<!-- results:x -->\n<!-- /results:x -->\nafter\n", encoding="utf-8")
+    entry = dataclasses.replace(results.ENTRIES["safe_rl_long"], name="x", document=doc)
+    assert results.committed_block(entry) == ""
+    assert results.write_block(entry, "| a |\n| b |")
+    assert (
+        doc.read_text(encoding="utf-8")
+        == "intro\n<!-- results:x -->\n| a |\n| b |\n<!-- /results:x -->\nafter\n"
+    )
+    assert results.committed_block(entry) == "| a |\n| b |"
+    assert not results.write_block(entry, "| a |\n| b |")
