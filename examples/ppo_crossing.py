@@ -90,6 +90,11 @@ class Args:
     bc_steps: int = 0
     """Warm start: env steps of the rule-based yielding policy whose actions the actor imitates before
     PPO (behaviour cloning; 0 = PPO from scratch)."""
+    dagger_rounds: int = 0
+    """After the warm start: rounds of DAgger (Ross et al. 2011), each ``--bc-steps`` env steps driven by
+    the actor's own greedy action while the yielding policy, fed the same observations, labels every step;
+    the actor is refitted on all labels so far. It teaches the actor the states its own mistakes lead to,
+    which plain imitation of the rule's drives never shows it (0: none)."""
     log_std_init: float = 0.0
     """Initial log standard deviation of the Gaussian actions (lower after a warm start)."""
     seed: int = 0
@@ -148,6 +153,12 @@ def parse_args(argv: list[str] | None = None) -> Args:
     p.add_argument(
         "--bc-steps", type=non_negative, default=d.bc_steps, help="warm start: imitate the yielding policy"
     )
+    p.add_argument(
+        "--dagger-rounds",
+        type=non_negative,
+        default=d.dagger_rounds,
+        help="after --bc-steps: DAgger rounds driven by the actor, labelled by the yielding policy",
+    )
     p.add_argument("--log-std-init", type=float, default=d.log_std_init, help="initial log std of actions")
     p.add_argument("--seed", type=int, default=d.seed, help="random seed")
     p.add_argument("--eval-every", type=non_negative, default=d.eval_every, help="steps between checkpoints")
@@ -174,13 +185,16 @@ def parse_args(argv: list[str] | None = None) -> Args:
         p.error(f"--residual-offset must be in [-1, 1], got {a.residual_offset!r}")
     if not a.cost_budget >= 0 or not a.lambda_lr >= 0:
         p.error(f"--cost-budget and --lambda-lr must be >= 0, got {a.cost_budget!r}, {a.lambda_lr!r}")
+    if a.dagger_rounds and not a.bc_steps:
+        p.error(f"--dagger-rounds needs --bc-steps > 0 (the steps of each round), got {a.dagger_rounds}")
     if a.subproc and a.algo == "ppo_lagrangian":
         p.error("--subproc: the Lagrange multiplier is shared in-process; run ppo_lagrangian without it")
     return Args(
         a.timesteps, a.algo, a.cost_budget, a.lambda_lr, a.residual, a.residual_offset, names, a.n_envs,
         a.subproc, a.n_steps,
         a.batch_size, a.learning_rate, a.gamma, a.time_reward,
-        a.predictors, a.bc_steps, a.log_std_init, a.seed, a.eval_every, a.eval_episodes, a.out,
+        a.predictors, a.bc_steps, a.dagger_rounds, a.log_std_init, a.seed, a.eval_every, a.eval_episodes,
+        a.out,
         not a.no_progress,
     )  # fmt: skip
 
@@ -339,47 +353,49 @@ class EpisodeLog:
         self.file.close()
 
 
-def behaviour_cloning(model: Any, venv: Any, args: Args, epochs: int = 10) -> float:
-    """Fit the actor's mean action to the yielding policy's on `args.bc_steps` demonstration steps.
+def _demonstrations(
+    env: Any, obs_keys: list[str], steps: int, first_seed: int, actor: Any = None
+) -> tuple[dict[str, list[np.ndarray]], list[float]]:
+    """`steps` observations labelled with the yielding policy's action.
 
-    The demonstrations also seed VecNormalize's observation statistics. Returns the final MSE.
+    The env is driven by the teacher itself (`actor` None) or by `actor(obs)` while the teacher, fed the
+    same observations (so its memory follows the episode), labels each step.
     """
-    import torch
-
     from agents import make_policy
 
-    env = make_env(args.scenarios, args.predictors)
-    obs_keys = list(venv.observation_space.spaces)
     buf: dict[str, list[np.ndarray]] = {k: [] for k in obs_keys}
-    actions: list[float] = []
+    labels: list[float] = []
     episode = 0
-    while len(actions) < args.bc_steps:
-        obs, _ = env.reset(seed=args.seed * 100_003 + episode)
+    while len(labels) < steps:
+        obs, _ = env.reset(seed=first_seed + episode)
         base = env.unwrapped
         teacher = make_policy("yielding", scenario=base.scenario, dt=base.config.dt)
         done = False
-        while not done and len(actions) < args.bc_steps:
+        while not done and len(labels) < steps:
             a = np.asarray(teacher(obs), dtype=np.float32).reshape(1)
             for k in obs_keys:
                 buf[k].append(obs[k])
-            actions.append(float(a[0]))
-            obs, _, terminated, truncated, _ = env.step(a)
+            labels.append(float(a[0]))
+            act = a if actor is None else np.asarray(actor(obs), dtype=np.float32).reshape(1)
+            obs, _, terminated, truncated, _ = env.step(act)
             done = terminated or truncated
         episode += 1
-    env.close()
-    data = {k: np.stack(v) for k, v in buf.items()}
-    for k in obs_keys:
-        venv.obs_rms[k].update(data[k])
-    norm = venv.normalize_obs(data)
-    target = torch.as_tensor(np.asarray(actions, dtype=np.float32))[:, None]
+    return buf, labels
+
+
+def _fit(model: Any, norm: dict[str, np.ndarray], labels: list[float], seed: int, epochs: int) -> float:
+    """`epochs` passes of Adam on the MSE between the actor's mean action and the labels."""
+    import torch
+
+    target = torch.as_tensor(np.asarray(labels, dtype=np.float32))[:, None]
     policy = model.policy
     opt = torch.optim.Adam(policy.parameters(), lr=1e-3)
-    rng = np.random.default_rng(args.seed)
-    n = len(actions)
+    rng = np.random.default_rng(seed)
+    n = len(labels)
     loss_value = float("nan")
     for _ in range(epochs):
         for idx in np.array_split(rng.permutation(n), max(1, n // 256)):
-            batch = {k: torch.as_tensor(norm[k][idx]) for k in obs_keys}
+            batch = {k: torch.as_tensor(v[idx]) for k, v in norm.items()}
             mean = policy.get_distribution(batch).distribution.mean
             loss = torch.nn.functional.mse_loss(mean, target[idx])
             opt.zero_grad()
@@ -387,6 +403,37 @@ def behaviour_cloning(model: Any, venv: Any, args: Args, epochs: int = 10) -> fl
             opt.step()
             loss_value = loss.item()
     return loss_value
+
+
+def behaviour_cloning(model: Any, venv: Any, args: Args, epochs: int = 10) -> float:
+    """Fit the actor's mean action to the yielding policy's on `args.bc_steps` demonstration steps, then
+    run `args.dagger_rounds` DAgger rounds of as many steps driven by the actor's greedy action.
+
+    The first demonstrations also seed VecNormalize's observation statistics. Returns the final MSE.
+    """
+    env = make_env(args.scenarios, args.predictors)
+    obs_keys = list(venv.observation_space.spaces)
+    buf, labels = _demonstrations(env, obs_keys, args.bc_steps, args.seed * 100_003)
+    data = {k: np.stack(v) for k, v in buf.items()}
+    for k in obs_keys:
+        venv.obs_rms[k].update(data[k])
+    norm = venv.normalize_obs(data)
+    mse = _fit(model, norm, labels, args.seed, epochs)
+
+    def actor(obs: dict[str, np.ndarray]) -> np.ndarray:
+        action, _ = model.predict(venv.normalize_obs(obs), deterministic=True)
+        return np.clip(action, -1.0, 1.0)
+
+    for r in range(args.dagger_rounds):
+        first = args.seed * 100_003 + 50_000 * (r + 1)  # episodes the earlier rounds did not drive
+        more, more_labels = _demonstrations(env, obs_keys, args.bc_steps, first, actor)
+        fresh = venv.normalize_obs({k: np.stack(v) for k, v in more.items()})
+        norm = {k: np.concatenate([norm[k], fresh[k]]) for k in obs_keys}
+        labels = labels + more_labels
+        mse = _fit(model, norm, labels, args.seed + r + 1, epochs)
+        print(f"DAgger round {r + 1}/{args.dagger_rounds}: {len(labels)} labelled steps, MSE {mse:.4f}")
+    env.close()
+    return mse
 
 
 def plot_learning_curve(episodes_csv: Path, png: Path, window: int = 200) -> None:

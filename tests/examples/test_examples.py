@@ -119,3 +119,36 @@ def test_ppo_time_reward_replaces_the_cost_of_time(monkeypatch: pytest.MonkeyPat
         env.close()
     assert terms[None] == pytest.approx(-0.2 * 0.1)  # the env's default: −0.2 per second, 0.1 s steps
     assert terms[-1.0] == pytest.approx(-1.0 * 0.1)
+
+
+def test_dagger_rounds_are_driven_by_the_actor_and_labelled_by_the_rule(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A DAgger round steps the env with the actor's action and records the yielding policy's as the label."""
+    import importlib.util
+
+    import numpy as np
+
+    from crossing_env.observation import EGO_KEY, EgoColumn
+
+    path = REPO / "examples" / "ppo_crossing.py"
+    spec = importlib.util.spec_from_file_location("ppo_crossing_dagger", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, module)
+    spec.loader.exec_module(module)
+    assert module.parse_args(["--bc-steps", "10", "--dagger-rounds", "2"]).dagger_rounds == 2
+    env = module.make_env(("zebra_case1",), False)
+    keys = list(env.observation_space.spaces)
+    steps = 60
+    rule_obs, rule_labels = module._demonstrations(env, keys, steps, 7)
+    brake_obs, brake_labels = module._demonstrations(env, keys, steps, 7, lambda obs: np.float32(-1.0))
+    env.close()
+    assert len(rule_labels) == len(brake_labels) == steps
+    speed = EgoColumn.SPEED
+    rule_speed = np.array([o[speed] for o in rule_obs[EGO_KEY]])
+    brake_speed = np.array([o[speed] for o in brake_obs[EGO_KEY]])
+    assert rule_speed[0] == brake_speed[0] > 5.0  # the same episode start
+    assert brake_speed[-1] < 0.5 < rule_speed[-1]  # the actor's full braking drove the env, not the rule
+    assert max(brake_labels) > -1.0  # the labels are the rule's, not the actor's constant -1
+    assert not np.allclose(rule_labels, brake_labels)  # the rule answers the states the actor led to
