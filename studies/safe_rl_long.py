@@ -13,8 +13,9 @@ runs' ``episodes.csv`` and checkpoints:
   against env steps, per budget and seed, and the mean over seeds with a 95 % t-interval across them;
 - **greedy checkpoints**: every checkpoint's deterministic policy on `SELECTION_SEED` episodes
   (``--episodes`` per scenario, seeds `crossing-eval` does not use) beside `yielding` on the same episodes:
-  collisions, yield compliance, censored delay and the number of scenarios where it is as safe as
-  `yielding` (no more collisions, at least its compliance) — the curve a deployed policy would follow.
+  collisions, yield compliance, censored delay, mean episode cost and the number of scenarios where it is
+  as safe as `yielding` (no more collisions, at least its compliance) — the curve a deployed policy would
+  follow.
 
 Everything measured goes to ``benchmarks/results/safe_rl_long.json``; the results registry renders it into
 ``docs/rl.md`` (``python -m benchmarks.results --render``).
@@ -44,9 +45,10 @@ CHECKPOINT_EVERY = 50_000
 BINS = 15
 """Training-curve bins over the env steps (20,000 steps each)."""
 BUDGETS = (2.0, 1.0)
-"""Cost budgets per episode: the recipe's (`crossing_env.constrained.CostBudget`'s default), under which the
-expected cost of a policy that collides in one episode of twelve stays within budget (one collision costs
-about 17), and one at about `yielding`'s own cost, which leaves a collision no room."""
+"""Cost budgets per episode: the recipe's (`crossing_env.constrained.CostBudget`'s default), within which a
+policy that collides in one episode of twelve can stay (a collision costs several times the budget with the
+near-miss steps before it), and one at about `yielding`'s own mean cost, which leaves collisions half the
+room."""
 CURVE_METRICS = ("cost", "collision", "compliance", "censored_delay", "multiplier")
 
 
