@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytest.importorskip("stable_baselines3", reason="stable-baselines3 (test extra) not installed")
@@ -48,6 +49,47 @@ def test_ppo_example_trains_logs_plots_and_evaluates(tmp_path: Path) -> None:
         "step,scenario,return,cost,collision,obligations,violations,delay,duration,multiplier,wall_s"
     )
     assert (out / "progress.csv").is_file()
+
+
+def _short_lagrangian_run(tmp_path: Path, name: str, seed: int) -> Path:
+    out = tmp_path / name
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(REPO / "examples" / "ppo_crossing.py"),
+            *("--algo", "ppo_lagrangian", "--timesteps", "512", "--n-envs", "2", "--n-steps", "128"),
+            *("--batch-size", "64", "--bc-steps", "64", "--eval-every", "0", "--eval-episodes", "0"),
+            *("--seed", str(seed), "--scenarios", "ncap_cpna,zebra_case1"),
+            *("--out", str(out), "--no-progress"),
+        ],
+        cwd=tmp_path,
+        env=dict(os.environ, PYTHONPATH=str(REPO), OMP_NUM_THREADS="1"),
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return out
+
+
+def _episodes_without_wall_clock(out: Path) -> list[dict[str, str]]:
+    with (out / "episodes.csv").open() as fh:
+        return [{k: v for k, v in r.items() if k != "wall_s"} for r in csv.DictReader(fh)]
+
+
+def test_training_with_the_same_seed_gives_the_same_policy(tmp_path: Path) -> None:
+    """docs/rl.md relies on it: on one installation a seed fixes the warm start, PPO and λ."""
+    first = _short_lagrangian_run(tmp_path, "a", seed=5)
+    again = _short_lagrangian_run(tmp_path, "b", seed=5)
+    other = _short_lagrangian_run(tmp_path, "c", seed=6)
+    with np.load(first / "model.policy.npz") as a, np.load(again / "model.policy.npz") as b:
+        assert a.files == b.files
+        for k in a.files:
+            np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+    assert _episodes_without_wall_clock(first) == _episodes_without_wall_clock(again)
+    with np.load(first / "model.policy.npz") as a, np.load(other / "model.policy.npz") as c:
+        assert any(a[k].shape == c[k].shape and not np.array_equal(a[k], c[k]) for k in a.files)
 
 
 def test_ppo_example_rejects_bad_timesteps(tmp_path: Path) -> None:
