@@ -51,17 +51,10 @@ def test_ppo_example_trains_logs_plots_and_evaluates(tmp_path: Path) -> None:
     assert (out / "progress.csv").is_file()
 
 
-def _short_lagrangian_run(tmp_path: Path, name: str, seed: int) -> Path:
-    out = tmp_path / name
+def _train(tmp_path: Path, *options: str) -> subprocess.CompletedProcess[str]:
+    """Run the recipe with `options` (single-threaded, as the determinism it is tested for needs)."""
     proc = subprocess.run(
-        [
-            sys.executable,
-            str(REPO / "examples" / "ppo_crossing.py"),
-            *("--algo", "ppo_lagrangian", "--timesteps", "512", "--n-envs", "2", "--n-steps", "128"),
-            *("--batch-size", "64", "--bc-steps", "64", "--eval-every", "0", "--eval-episodes", "0"),
-            *("--seed", str(seed), "--scenarios", "ncap_cpna,zebra_case1"),
-            *("--out", str(out), "--no-progress"),
-        ],
+        [sys.executable, str(REPO / "examples" / "ppo_crossing.py"), *options, "--no-progress"],
         cwd=tmp_path,
         env=dict(os.environ, PYTHONPATH=str(REPO), OMP_NUM_THREADS="1"),
         capture_output=True,
@@ -70,6 +63,17 @@ def _short_lagrangian_run(tmp_path: Path, name: str, seed: int) -> Path:
         check=False,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
+    return proc
+
+
+def _short_lagrangian_run(tmp_path: Path, name: str, seed: int) -> Path:
+    out = tmp_path / name
+    _train(
+        tmp_path,
+        *("--algo", "ppo_lagrangian", "--timesteps", "512", "--n-envs", "2", "--n-steps", "128"),
+        *("--batch-size", "64", "--bc-steps", "64", "--eval-every", "0", "--eval-episodes", "0"),
+        *("--seed", str(seed), "--scenarios", "ncap_cpna,zebra_case1", "--out", str(out)),
+    )
     return out
 
 
@@ -113,23 +117,13 @@ def test_ppo_lagrangian_raises_its_multiplier_while_the_cost_exceeds_the_budget(
     is timed to meet a car that does: near misses and collisions, so the cost exceeds the budget.
     """
     out = tmp_path / "lag"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            str(REPO / "examples" / "ppo_crossing.py"),
-            *("--algo", "ppo_lagrangian", "--cost-budget", "0", "--lambda-lr", "0.5"),
-            *("--timesteps", "1536", "--n-envs", "2", "--n-steps", "256", "--batch-size", "128"),
-            *("--eval-every", "0", "--eval-episodes", "0", "--seed", "3", "--log-std-init", "-3"),
-            *("--scenarios", "ncap_cpna", "--out", str(out), "--no-progress"),
-        ],
-        cwd=tmp_path,
-        env=dict(os.environ, PYTHONPATH=str(REPO), OMP_NUM_THREADS="1"),
-        capture_output=True,
-        text=True,
-        timeout=600,
-        check=False,
+    proc = _train(
+        tmp_path,
+        *("--algo", "ppo_lagrangian", "--cost-budget", "0", "--lambda-lr", "0.5"),
+        *("--timesteps", "1536", "--n-envs", "2", "--n-steps", "256", "--batch-size", "128"),
+        *("--eval-every", "0", "--eval-episodes", "0", "--seed", "3", "--log-std-init", "-3"),
+        *("--scenarios", "ncap_cpna", "--out", str(out)),
     )
-    assert proc.returncode == 0, proc.stderr[-3000:]
     with (out / "episodes.csv").open() as fh:
         rows = list(csv.DictReader(fh))
     costs = [float(r["cost"]) for r in rows]
