@@ -206,10 +206,18 @@ def plot_curves(rows: list[dict[str, Any]], png: Path) -> None:
     plt.close(fig)
 
 
+def read_curve_rows(path: Path, text: tuple[str, ...]) -> list[dict[str, Any]]:
+    """Rows of a curves CSV (this module's or `studies.safe_rl_long`'s), numbers as floats but `text`.
+
+    What a figure is drawn again from, with no episodes run.
+    """
+    with path.open() as fh:
+        return [{k: (v if k in text else float(v)) for k, v in r.items()} for r in csv.DictReader(fh)]
+
+
 def replot(figures: Path) -> None:
     """Draw ``rl_curves.png`` again from the measured ``rl_curves.csv`` beside it (no episodes run)."""
-    with (figures / "rl_curves.csv").open() as fh:
-        rows = [{**r, **{k: float(r[k]) for k in ("x", "mean", "low", "high")}} for r in csv.DictReader(fh)]
+    rows = read_curve_rows(figures / "rl_curves.csv", text=("algo", "axis", "metric", "seeds"))
     plot_curves(rows, figures / "rl_curves.png")
 
 

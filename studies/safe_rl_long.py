@@ -257,8 +257,7 @@ def plot(rows: list[dict[str, Any]], greedy: dict[str, Any], seeds: tuple[int, .
 
 def replot(figures: Path, results: Path) -> None:
     """Draw ``rl_lagrangian_long.png`` again from the measured CSV and results JSON (no episodes run)."""
-    with (figures / "rl_lagrangian_long.csv").open() as fh:
-        rows = [{k: (v if k == "metric" else float(v)) for k, v in r.items()} for r in csv.DictReader(fh)]
+    rows = safe_rl.read_curve_rows(figures / "rl_lagrangian_long.csv", text=("metric",))
     data = json.loads(results.read_text(encoding="utf-8"))
     plot(rows, data["checkpoints"], tuple(data["seeds"]), figures / "rl_lagrangian_long.png")
 

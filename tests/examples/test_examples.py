@@ -16,25 +16,29 @@ pytest.importorskip("stable_baselines3", reason="stable-baselines3 (test extra) 
 REPO = Path(__file__).resolve().parents[2]
 
 
-def test_ppo_example_trains_logs_plots_and_evaluates(tmp_path: Path) -> None:
-    out = tmp_path / "run"
-    env = dict(os.environ, PYTHONPATH=str(REPO), OMP_NUM_THREADS="1")
+def _train(tmp_path: Path, *options: str) -> subprocess.CompletedProcess[str]:
+    """Run the recipe with `options` (single-threaded, as the determinism it is tested for needs)."""
     proc = subprocess.run(
-        [
-            sys.executable,
-            str(REPO / "examples" / "ppo_crossing.py"),
-            *("--timesteps", "512", "--n-envs", "2", "--n-steps", "128", "--batch-size", "64"),
-            *("--bc-steps", "64", "--eval-every", "256", "--eval-episodes", "1"),
-            *("--scenarios", "zebra_case1,midblock_jaywalker", "--out", str(out), "--no-progress"),
-        ],
+        [sys.executable, str(REPO / "examples" / "ppo_crossing.py"), *options, "--no-progress"],
         cwd=tmp_path,
-        env=env,
+        env=dict(os.environ, PYTHONPATH=str(REPO), OMP_NUM_THREADS="1"),
         capture_output=True,
         text=True,
         timeout=600,
         check=False,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
+    return proc
+
+
+def test_ppo_example_trains_logs_plots_and_evaluates(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    proc = _train(
+        tmp_path,
+        *("--timesteps", "512", "--n-envs", "2", "--n-steps", "128", "--batch-size", "64"),
+        *("--bc-steps", "64", "--eval-every", "256", "--eval-episodes", "1"),
+        *("--scenarios", "zebra_case1,midblock_jaywalker", "--out", str(out)),
+    )
     assert "trained PPO (ppo) for 512 steps" in proc.stdout
     assert "warm start: imitated the yielding policy on 64 steps" in proc.stdout
     assert "collision rate [95% CI]" in proc.stdout and "mean return" in proc.stdout
@@ -49,21 +53,6 @@ def test_ppo_example_trains_logs_plots_and_evaluates(tmp_path: Path) -> None:
         "step,scenario,return,cost,collision,obligations,violations,delay,duration,multiplier,wall_s"
     )
     assert (out / "progress.csv").is_file()
-
-
-def _train(tmp_path: Path, *options: str) -> subprocess.CompletedProcess[str]:
-    """Run the recipe with `options` (single-threaded, as the determinism it is tested for needs)."""
-    proc = subprocess.run(
-        [sys.executable, str(REPO / "examples" / "ppo_crossing.py"), *options, "--no-progress"],
-        cwd=tmp_path,
-        env=dict(os.environ, PYTHONPATH=str(REPO), OMP_NUM_THREADS="1"),
-        capture_output=True,
-        text=True,
-        timeout=600,
-        check=False,
-    )
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return proc
 
 
 def _short_lagrangian_run(tmp_path: Path, name: str, seed: int) -> Path:
