@@ -405,6 +405,16 @@ def _fit(model: Any, norm: dict[str, np.ndarray], labels: list[float], seed: int
     return loss_value
 
 
+def dagger_first_seed(seed: int, round_index: int, steps: int) -> int:
+    """First episode seed of DAgger round `round_index` of training seed `seed` (`steps` steps a round).
+
+    A round drives at most `steps` episodes, so training seed s takes seeds [s·steps, (s+1)·steps) of its
+    round's block of 2³² seeds: no two rounds and no two training seeds (with the same `steps`) meet the
+    same episode, and none meets the warm start's demonstrations (seeds below 2³² from ``seed · 100,003``).
+    """
+    return (round_index + 1) * 2**32 + seed * steps
+
+
 def behaviour_cloning(model: Any, venv: Any, args: Args, epochs: int = 10) -> float:
     """Fit the actor's mean action to the yielding policy's on `args.bc_steps` demonstration steps, then
     run `args.dagger_rounds` DAgger rounds of as many steps driven by the actor's greedy action.
@@ -425,7 +435,7 @@ def behaviour_cloning(model: Any, venv: Any, args: Args, epochs: int = 10) -> fl
         return np.clip(action, -1.0, 1.0)
 
     for r in range(args.dagger_rounds):
-        first = args.seed * 100_003 + 50_000 * (r + 1)  # episodes the earlier rounds did not drive
+        first = dagger_first_seed(args.seed, r, args.bc_steps)
         more, more_labels = _demonstrations(env, obs_keys, args.bc_steps, first, actor)
         fresh = venv.normalize_obs({k: np.stack(v) for k, v in more.items()})
         norm = {k: np.concatenate([norm[k], fresh[k]]) for k in obs_keys}

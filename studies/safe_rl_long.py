@@ -315,8 +315,8 @@ def render_body(data: dict[str, Any]) -> str:
     ref = greedy["yielding"]
     n_sc = data["scenarios"]
     lines = [
-        f"PPO-Lagrangian trained {data['timesteps']:,} PPO steps (after the same warm start), three seeds per"
-        f" cost budget. Greedy checkpoints on {ref['episodes']} selection episodes"
+        f"PPO-Lagrangian trained {data['timesteps']:,} PPO steps (after the same warm start),"
+        f" {len(seeds)} seeds per cost budget. Greedy checkpoints on {ref['episodes']} selection episodes"
         f" ({data['episodes_per_scenario']} per scenario, seed {safe_rl.SELECTION_SEED}), beside `yielding`"
         " on the same episodes; each cell: collisions / yield compliance / censored delay s / mean episode"
         f" cost / scenarios (of {n_sc}) as safe as `yielding` there (no more collisions, at least its"
@@ -335,8 +335,8 @@ def render_body(data: dict[str, Any]) -> str:
     lines += [
         "",
         "The training episodes of the last 20,000 steps (exploration on) and the end of each run; wall-clock"
-        " of the PPO phase (the registered runs trained side by side, six at once, on the shared 2-core"
-        " machine):",
+        " of the PPO phase (runs that train side by side share the machine's CPUs, so it says how long a"
+        " run took in that measurement, not what one run alone costs):",
         "",
         "| budget | seed | episode cost | collision rate | λ at the end | wall-clock s |",
         "|---|---|---|---|---|---|",
@@ -348,7 +348,7 @@ def render_body(data: dict[str, Any]) -> str:
                 f"| {budget} | {s} | {r['last_20k_cost']:.2f} | {r['last_20k_collision_rate']:.3f} |"
                 f" {r['final_multiplier']:.2f} | {r['train_wall_s']:.0f} |"
             )
-    lines += ["", "![PPO-Lagrangian trained six times as long, at two budgets](rl_lagrangian_long.png)"]
+    lines += ["", "![PPO-Lagrangian trained longer, at two budgets](rl_lagrangian_long.png)"]
     return "\n".join(lines)
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import itertools
 import os
 import subprocess
 import sys
@@ -36,11 +37,12 @@ def test_ppo_example_trains_logs_plots_and_evaluates(tmp_path: Path) -> None:
     proc = _train(
         tmp_path,
         *("--timesteps", "512", "--n-envs", "2", "--n-steps", "128", "--batch-size", "64"),
-        *("--bc-steps", "64", "--eval-every", "256", "--eval-episodes", "1"),
+        *("--bc-steps", "64", "--dagger-rounds", "1", "--eval-every", "256", "--eval-episodes", "1"),
         *("--scenarios", "zebra_case1,midblock_jaywalker", "--out", str(out)),
     )
     assert "trained PPO (ppo) for 512 steps" in proc.stdout
     assert "warm start: imitated the yielding policy on 64 steps" in proc.stdout
+    assert "DAgger round 1/1: 128 labelled steps" in proc.stdout  # the loop ran: 64 + 64 steps labelled
     assert "collision rate [95% CI]" in proc.stdout and "mean return" in proc.stdout
     model = out / "model.zip"
     assert model.is_file() and model.stat().st_size > 1000
@@ -177,3 +179,26 @@ def test_dagger_rounds_are_driven_by_the_actor_and_labelled_by_the_rule(
     assert brake_speed[-1] < 0.5 < rule_speed[-1]  # the actor's full braking drove the env, not the rule
     assert max(brake_labels) > -1.0  # the labels are the rule's, not the actor's constant -1
     assert not np.allclose(rule_labels, brake_labels)  # the rule answers the states the actor led to
+
+
+def test_dagger_rounds_of_different_training_seeds_drive_different_episodes(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """No two DAgger rounds, and no two training seeds, share an episode seed (nor the warm start's)."""
+    import importlib.util
+
+    path = REPO / "examples" / "ppo_crossing.py"
+    spec = importlib.util.spec_from_file_location("ppo_crossing_seeds", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, module)
+    spec.loader.exec_module(module)
+    steps, seeds, rounds = 20_000, range(3), range(4)
+    spans = [
+        range(module.dagger_first_seed(s, r, steps), module.dagger_first_seed(s, r, steps) + steps)
+        for s in seeds
+        for r in rounds
+    ]
+    spans += [range(s * 100_003, s * 100_003 + steps) for s in seeds]  # the warm starts' demonstrations
+    starts = sorted((span.start, span.stop) for span in spans)
+    assert all(stop <= nxt for (_, stop), (nxt, _) in itertools.pairwise(starts))
