@@ -17,7 +17,7 @@ from agents.config import (
     TTCBrakeConfig,
     YieldingConfig,
 )
-from agents.policy import Policy, as_policy
+from agents.policy import Policy, as_policy, policy_is_batched
 from agents.predictive import PredictiveYielding
 from agents.registry import (
     BUILTIN_POLICIES,
@@ -51,6 +51,7 @@ __all__ = [
     "YieldingPolicy",
     "as_policy",
     "make_policy",
+    "policy_is_batched",
     "policy_names",
     "policy_uses_predictors",
     "register_policy",

@@ -33,6 +33,8 @@ class ConstantSpeed:
 
     name: ClassVar[str] = "constant_speed"
     uses_predictors: ClassVar[bool] = False
+    batched: ClassVar[bool] = True
+    """Acts for a batch of episodes in one call, each element as alone (`agents.policy_is_batched`)."""
 
     def __init__(self, config: ConstantSpeedConfig | None = None) -> None:
         self.config = config or ConstantSpeedConfig()
@@ -56,6 +58,8 @@ class TTCEmergencyBrake:
 
     name: ClassVar[str] = "ttc_brake"
     uses_predictors: ClassVar[bool] = False
+    batched: ClassVar[bool] = True
+    """Acts for a batch of episodes in one call, each element as alone (`agents.policy_is_batched`)."""
 
     def __init__(self, config: TTCBrakeConfig | None = None) -> None:
         self.config = config or TTCBrakeConfig()
@@ -106,6 +110,8 @@ class HighwayEnvRule:
 
     name: ClassVar[str] = "highway_rule"
     uses_predictors: ClassVar[bool] = False
+    batched: ClassVar[bool] = True
+    """Acts for a batch of episodes in one call, each element as alone (`agents.policy_is_batched`)."""
 
     def __init__(self, config: HighwayRuleConfig | None = None) -> None:
         self.config = config or HighwayRuleConfig()

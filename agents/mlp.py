@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -134,16 +134,31 @@ class MLPPolicy:
             parts.append(z.reshape(int(np.prod(lead)), -1))
         return np.concatenate(parts, axis=1)
 
+    batched: ClassVar[bool] = True
+    """Acts for a batch of episodes in one call, each element as alone (`agents.policy_is_batched`)."""
+
     def __call__(self, obs: ObsLike) -> np.ndarray:
-        """The greedy action(s): float32 of shape (1,) for one observation, (B, 1) for a batch."""
-        x = self.features(obs)
+        """The greedy action(s): float32 of shape (1,) for one observation, (B, 1) for a batch.
+
+        The layers run one row at a time: a matrix product over a whole batch may add up in another order
+        than over one row (BLAS picks its kernel by shape), and an element must get the action it gets
+        alone to the last bit (`batched`). The features, the bulk of the small-array work, are batched.
+        """
+        rows = self.features(obs)
+        out = np.empty((rows.shape[0], self.weights.layers[-1][0].shape[0]))
+        for r in range(rows.shape[0]):
+            out[r] = self._forward(rows[r : r + 1])[0]
+        action = np.clip(out, -1.0, 1.0).astype(np.float32)
+        return action.reshape(1) if action.shape[0] == 1 else action
+
+    def _forward(self, x: np.ndarray) -> np.ndarray:
+        """The actor network on (1, F) features."""
         layers = self.weights.layers
         for i, (w, b) in enumerate(layers):
             x = x @ w.T + b
             if i < len(layers) - 1:
                 x = np.tanh(x)
-        action = np.clip(x, -1.0, 1.0).astype(np.float32)
-        return action.reshape(1) if action.shape[0] == 1 else action
+        return x
 
     def reset(self, seed: int | None = None) -> None:
         """Stateless: nothing to reset."""

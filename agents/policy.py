@@ -26,6 +26,11 @@ class Policy(Protocol):
 
     Optional class attribute ``uses_predictors: bool`` (default False): the policy reads the keys the
     prediction wrappers add (``crossing_intention``, ``predicted_paths``), so the rollout puts them on.
+
+    Optional attribute ``batched: bool`` (default False, see `policy_is_batched`): one call may take a batch
+    of observations of different episodes (leading axis B), and each element gets the action it would get
+    alone, bit for bit; memory is kept per batch position and nothing is drawn at random. The evaluation
+    then steps several episodes of such a policy together (`rollout.run_episodes`).
     """
 
     def __call__(self, obs: ObsLike) -> np.ndarray:
@@ -51,6 +56,11 @@ class FunctionPolicy:
 
     def reset(self, seed: int | None = None) -> None:
         """Nothing to forget."""
+
+
+def policy_is_batched(policy: object) -> bool:
+    """Whether `policy` declares ``batched = True``: it may act for several episodes in one call."""
+    return getattr(policy, "batched", False) is True
 
 
 def as_policy(obj: Any) -> Policy:

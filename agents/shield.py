@@ -46,7 +46,7 @@ import gymnasium as gym
 import numpy as np
 
 from agents.config import YieldingConfig
-from agents.policy import Policy
+from agents.policy import Policy, policy_is_batched
 from agents.view import EPS, ObsLike, View, follow, parse_observation, stop_acceleration, travel_time
 from agents.yielding import LegalDuty, YieldingPolicy
 from crossing_env.env import acceleration_to_action, action_to_acceleration
@@ -179,20 +179,31 @@ class YieldingShield:
         an action of 0 asks for the most the envelope allows and the learned part finds where to hold back
         (down to the rule itself at action −1). Either way the envelope's limit caps the result.
         """
-        u = float(np.clip(np.asarray(action, dtype=np.float64).reshape(-1)[0], -1.0, 1.0))
+        shielded, changed = self.apply_batch(action, obs, residual_scale, residual_offset)
+        return shielded.reshape(-1)[:1], bool(changed[0])
+
+    def apply_batch(
+        self, action: Any, obs: ObsLike, residual_scale: float = 0.0, residual_offset: float = 0.0
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """`apply` for one observation or a batch, each element as `apply` alone gives it.
+
+        Returns (float32 actions shaped as the policies' output, (B,) bool: where the shield changed one).
+        """
+        view = parse_observation(obs)
+        u = np.clip(np.asarray(action, dtype=np.float64).reshape(-1), -1.0, 1.0)
         if residual_scale > 0.0:
-            u = float(np.clip(residual_offset + u, -1.0, 1.0))
-        rule, bound = self.rule_and_limit(parse_observation(obs))
+            u = np.clip(residual_offset + u, -1.0, 1.0)
+        rule, bound = self.rule_and_limit(view)
         ego = self.config.ego
         if residual_scale > 0.0:
-            wanted = float(np.clip(rule[0] + residual_scale * u, -ego.max_deceleration, ego.max_acceleration))
-            requested = acceleration_to_action(np.array([wanted]), ego).reshape(1)
+            wanted = np.clip(rule + residual_scale * u, -ego.max_deceleration, ego.max_acceleration)
+            requested = acceleration_to_action(wanted, ego)
         else:
-            wanted = float(action_to_acceleration(u, ego))
-            requested = np.array([u], dtype=np.float32)
-        if wanted <= float(bound[0]):
-            return requested, False
-        return acceleration_to_action(np.array([bound[0]]), ego).reshape(1), True
+            wanted = action_to_acceleration(u, ego)
+            requested = u.astype(np.float32)
+        changed = ~(wanted <= bound)
+        shielded = np.where(changed, acceleration_to_action(bound, ego), requested)
+        return shielded.reshape(*view.lead, 1), changed
 
 
 class ShieldedPolicy:
@@ -216,10 +227,17 @@ class ShieldedPolicy:
         self.interventions = 0
         """Steps in which the shield replaced the learned action (since the last reset)."""
 
+    @property
+    def batched(self) -> bool:
+        """Acts for a batch of episodes in one call when the learned policy does (the shield always can)."""
+        return policy_is_batched(self.learned)
+
     def __call__(self, obs: ObsLike) -> np.ndarray:
-        """The learned action, replaced by the envelope's limit when above it."""
-        action, changed = self.shield.apply(self.learned(obs), obs, self.residual_scale, self.residual_offset)
-        self.interventions += int(changed)
+        """The learned action, replaced by the envelope's limit when above it (one observation or a batch)."""
+        action, changed = self.shield.apply_batch(
+            self.learned(obs), obs, self.residual_scale, self.residual_offset
+        )
+        self.interventions += int(np.count_nonzero(changed))
         return action
 
     def reset(self, seed: int | None = None) -> None:

@@ -102,6 +102,8 @@ class YieldingPolicy:
 
     name: ClassVar[str] = "yielding"
     uses_predictors: ClassVar[bool] = True
+    batched: ClassVar[bool] = True
+    """Acts for a batch of episodes in one call, each element as alone (`agents.policy_is_batched`)."""
 
     def __init__(self, config: YieldingConfig | None = None) -> None:
         self.config = config or YieldingConfig()

@@ -25,10 +25,19 @@ from typing import Any
 from tqdm import tqdm
 
 from crossing_common.processes import fork_is_safe
-from crossing_eval.tasks import EpisodeRecord, EpisodeTask, heaviest_first, run_episode, warm_up
+from crossing_eval.tasks import (
+    EpisodeRecord,
+    EpisodeTask,
+    batches,
+    heaviest_first,
+    run_batch,
+    run_episode,
+    warm_up,
+)
 
 IN_FLIGHT_PER_WORKER = 2
-"""Tasks submitted at a time per worker (lazy submission keeps memory flat whatever ``--episodes`` is)."""
+"""Batches of tasks (`crossing_eval.tasks.batches`) submitted at a time per worker (lazy submission keeps
+memory flat whatever ``--episodes`` is)."""
 FIRST_EPISODE_LOOKAHEAD = 64
 """Tasks searched for one with the prediction wrappers, to warm up this process with before forking (and
 handed to the workers slowest first)."""
@@ -50,6 +59,17 @@ class EpisodeFailed(RuntimeError):
     def __reduce__(self) -> tuple[type[EpisodeFailed], tuple[EpisodeTask, str]]:
         """Pickle by the constructor's arguments, so it crosses process and Ray boundaries whole."""
         return (type(self), (self.task, self.error))
+
+
+def run_batch_guarded(batch: list[EpisodeTask]) -> list[EpisodeRecord]:
+    """`run_batch` whose errors arrive as `run_episode_guarded`'s do, naming the episode that failed.
+
+    A batch that raises is run again episode by episode, so the error comes from the task that raised it.
+    """
+    try:
+        return run_batch(batch)
+    except Exception:
+        return [run_episode_guarded(t) for t in batch]
 
 
 class RayConnectionError(ConnectionError):
@@ -175,14 +195,15 @@ def _stop_pool(pool: ProcessPoolExecutor) -> None:
 def _run_local(
     tasks: Iterable[EpisodeTask],
     workers: int,
-    progress: Callable[[], None],
+    progress: Callable[[int], None],
     while_waiting: Callable[[], None] | None = None,
 ) -> list[EpisodeRecord]:
     if workers <= 1:
         out = []
-        for t in tasks:
-            out.append(run_episode(t))
-            progress()
+        for batch in batches(tasks):
+            done = run_batch(batch)
+            out.extend(done)
+            progress(len(done))
         return out
     records: list[EpisodeRecord] = []
     todo = iter(tasks)
@@ -198,13 +219,14 @@ def _run_local(
         if head:
             warm_up(head[0])
         todo = itertools.chain(head, todo)
+    pending = batches(todo)
     pool = ProcessPoolExecutor(
         max_workers=workers,
         mp_context=multiprocessing.get_context(method),
         initializer=_ignore_sigint,
     )
     try:
-        in_flight: set[Future[EpisodeRecord]] = set()
+        in_flight: set[Future[list[EpisodeRecord]]] = set()
         # Lazy submission: at most `limit` tasks wait in the pool, so memory stays flat however many there
         # are; records are sorted afterwards, so the order of completion never shows in the results.
         # The first submissions fork the workers. The objects that exist then stay out of the collector's
@@ -212,8 +234,8 @@ def _run_local(
         # is documented for); this process collects them again afterwards.
         gc.freeze()
         try:
-            for t in itertools.islice(todo, limit):
-                in_flight.add(pool.submit(run_episode_guarded, t))
+            for batch in itertools.islice(pending, limit):
+                in_flight.add(pool.submit(run_batch_guarded, batch))
         finally:
             gc.unfreeze()
         if while_waiting is not None:
@@ -221,10 +243,11 @@ def _run_local(
         while in_flight:
             done, in_flight = wait(in_flight, return_when=FIRST_COMPLETED)
             for fut in done:
-                records.append(fut.result())
-                progress()
-            for t in itertools.islice(todo, limit - len(in_flight)):
-                in_flight.add(pool.submit(run_episode_guarded, t))
+                finished = fut.result()
+                records.extend(finished)
+                progress(len(finished))
+            for batch in itertools.islice(pending, limit - len(in_flight)):
+                in_flight.add(pool.submit(run_batch_guarded, batch))
     except BaseException:
         _stop_pool(pool)
         raise
@@ -296,7 +319,7 @@ def _run_ray(
     tasks: Iterable[EpisodeTask],
     address: str | None,
     workers: int,
-    progress: Callable[[], None],
+    progress: Callable[[int], None],
     timeout: float = DEFAULT_RAY_TIMEOUT,
 ) -> list[EpisodeRecord]:
     """Run the tasks as Ray tasks on an existing cluster (`address`) or a fresh local one."""
@@ -334,23 +357,24 @@ def _run_ray(
             ) from None
         started = True
     try:
-        remote = ray.remote(num_cpus=1)(run_episode_guarded)
-        todo = iter(tasks)
+        remote = ray.remote(num_cpus=1)(run_batch_guarded)
+        todo = batches(tasks)
         limit = IN_FLIGHT_PER_WORKER * max(1, workers)
-        pending = [remote.remote(t) for t in itertools.islice(todo, limit)]
+        pending = [remote.remote(b) for b in itertools.islice(todo, limit)]
         records: list[EpisodeRecord] = []
         while pending:
             done, pending = ray.wait(pending, num_returns=1)
-            pending.extend(remote.remote(t) for t in itertools.islice(todo, limit - len(pending)))
+            pending.extend(remote.remote(b) for b in itertools.islice(todo, limit - len(pending)))
             try:
-                records.extend(ray.get(done))
+                finished = [r for batch in ray.get(done) for r in batch]
+                records.extend(finished)
             except ray.exceptions.RayTaskError as exc:
                 # Ray wraps a task's exception; hand on the original (it pickled, see run_episode_guarded).
                 cause = getattr(exc, "cause", None)
                 if isinstance(cause, Exception):
                     raise cause from None
                 raise
-            progress()
+            progress(len(finished))
         return records
     finally:
         if started:
@@ -371,7 +395,7 @@ class Heartbeat:
         self.start = self.last = time.monotonic()
 
     def update(self, n: int = 1) -> None:
-        """One more episode finished (the progress callback's signature)."""
+        """`n` more episodes finished (the progress callback's signature)."""
         self.done += n
         now = time.monotonic()
         if now - self.last >= self.interval:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import multiprocessing
 import sys
 import zlib
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 import rollout
-from agents import policy_uses_predictors
+from agents import policy_is_batched, policy_uses_predictors
 from crossing_common.processes import fork_is_safe
 from rollout import build_policy, make_env
 
@@ -126,6 +126,53 @@ def _cached_env(task: EpisodeTask) -> tuple[Any, list[str]]:
     return cached_env(task.scenario, task.intention, task.predictor)
 
 
+_SPARE_ENVS: dict[tuple[str, str, str], list[Any]] = {}
+"""More envs per `cached_env` key, for batches (`run_batch`): a batch steps one env per episode. Kept for
+the `SPARE_KEYS` keys used last (an env with the prediction wrappers holds about 4 MB)."""
+
+SPARE_KEYS = 2
+"""Keys whose spare envs are kept: tasks come sorted by scenario, so a worker meets one scenario's two
+wrapper settings in a row and builds their spares once; older ones are closed."""
+
+
+def _batch_envs(task: EpisodeTask, n: int) -> tuple[list[Any], list[str]]:
+    """`n` distinct envs for `task`'s scenario and wrappers: the cached one and spares, built on first use."""
+    env, used = _cached_env(task)
+    key = (task.scenario, task.predictor, task.intention)
+    spares = _SPARE_ENVS.pop(key, [])
+    _SPARE_ENVS[key] = spares  # the most recently used key last
+    while len(spares) < n - 1:
+        spares.append(make_env(task.scenario, intention=task.intention, predictor=task.predictor)[0])
+    while len(_SPARE_ENVS) > SPARE_KEYS:
+        for old in _SPARE_ENVS.pop(next(iter(_SPARE_ENVS))):
+            old.close()
+    return [env, *spares[: n - 1]], used
+
+
+BATCH_EPISODES = 8
+"""Episodes of one scenario, policy and wrappers stepped together at most (`batches`): the default run's 5
+episodes make one batch; more per batch would spread little more and balance the workers worse."""
+
+
+def batches(tasks: Iterable[EpisodeTask], size: int = BATCH_EPISODES) -> Iterator[list[EpisodeTask]]:
+    """Runs of consecutive tasks with the same scenario, policy and wrappers, at most `size` long.
+
+    Lazy: it reads one task past each batch, so a lazy task list stays lazy.
+    """
+    batch: list[EpisodeTask] = []
+    for task in tasks:
+        if batch and (len(batch) >= size or _batch_key(task) != _batch_key(batch[0])):
+            yield batch
+            batch = []
+        batch.append(task)
+    if batch:
+        yield batch
+
+
+def _batch_key(task: EpisodeTask) -> tuple[str, str, str, str]:
+    return task.scenario, task.policy, task.predictor, task.intention
+
+
 WARM_UP_STEPS = 40
 """Steps of a warm-up run (`warm_up`): enough to reach every compiled kernel an episode calls (all 27 of
 the default run's kernels are loaded after 20 steps of a wrapped zebra episode); episodes run ~300."""
@@ -182,12 +229,44 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
     """
     env, used = _cached_env(task)
     policy = build_policy(task.policy, env)
-    # One torch thread per process, where the env or the policy loaded torch (the shipped S-CGRU and the
-    # shipped learned policies run without it: importing torch for nothing costs 1.5 s a process).
+    _one_torch_thread()
+    return _record(task, rollout.run_episode(env, task.seed, policy=policy), used)
+
+
+def run_batch(tasks: Sequence[EpisodeTask]) -> list[EpisodeRecord]:
+    """The records of `tasks` (one batch of `batches`): the same records as `run_episode` of each.
+
+    A policy that declares itself batched (`agents.policy_is_batched`) drives all the episodes in one call
+    per step (`rollout.run_episodes`), which spreads its fixed cost per call; any other runs them one by one.
+
+    Raises:
+        ValueError: the tasks differ in scenario, policy or wrappers.
+        rollout.WrapperError: a predictor that cannot be loaded (never evaluated silently without it).
+    """
+    if len({_batch_key(t) for t in tasks}) > 1:
+        raise ValueError("a batch holds the episodes of one scenario, policy and wrappers")
+    env, used = _cached_env(tasks[0])
+    policy = build_policy(tasks[0].policy, env)
+    if len(tasks) < 2 or not policy_is_batched(policy):
+        return [run_episode(t) for t in tasks]
+    envs, used = _batch_envs(tasks[0], len(tasks))
+    _one_torch_thread()
+    episodes = rollout.run_episodes(envs, [t.seed for t in tasks], policy)
+    return [_record(t, e, used) for t, e in zip(tasks, episodes, strict=True)]
+
+
+def _one_torch_thread() -> None:
+    """One torch thread per process, where the env or the policy loaded torch.
+
+    The shipped S-CGRU and the shipped learned policies run without it: importing torch for nothing costs
+    1.5 s a process.
+    """
     torch = sys.modules.get("torch")
     if torch is not None:
         torch.set_num_threads(1)
-    episode = rollout.run_episode(env, task.seed, policy=policy)
+
+
+def _record(task: EpisodeTask, episode: rollout.Episode, used: list[str]) -> EpisodeRecord:
     return EpisodeRecord(
         task=task,
         result=episode.result,

@@ -131,3 +131,60 @@ def run_episode(
         metrics.update(gt)
     assert gt is not None  # frame 0 always comes
     return Episode(metrics.result().as_dict(), taken, episode_return, gt, initial_speed)
+
+
+def run_episodes(
+    envs: Sequence[gym.Env], seeds: Sequence[int], policy: Policy, max_steps: int | None = None
+) -> list[Episode]:
+    """Episode ``i`` of ``envs[i]`` with ``seeds[i]``, the policy acting for all of them in one batched call.
+
+    For a policy that declares ``batched = True`` (`agents.policy_is_batched`): it keeps its memory per
+    batch position and gives each element the action it would give alone, so every `Episode` equals
+    `run_episode` (env ``i``, seed ``i``) bit for bit. One call per step for the whole batch spreads the
+    policy's fixed cost per call (array set-up, small-array arithmetic) over the episodes. Episodes end at
+    their own step: an element that has ended keeps showing the policy its last observation (so the batch
+    positions stay put), and its actions are dropped. Reset with ``seeds[0]`` (a batched policy draws
+    nothing at random).
+
+    Raises:
+        ValueError: ``envs`` and ``seeds`` differ in length, or are empty.
+    """
+    if len(envs) != len(seeds) or not envs:
+        raise ValueError(f"one seed per env: got {len(envs)} env(s) and {len(seeds)} seed(s)")
+    if len(envs) == 1:
+        return [run_episode(envs[0], seeds[0], policy=policy, max_steps=max_steps)]
+    policy.reset(seed=seeds[0])
+    n = len(envs)
+    metrics = [EpisodeMetrics(env.unwrapped.scenario, env.unwrapped.config.dt) for env in envs]
+    last: list[Any] = []
+    truth: list[GroundTruth] = []
+    for env, seed in zip(envs, seeds, strict=True):
+        obs, info = env.reset(seed=seed)
+        last.append(obs)
+        truth.append(info["ground_truth"])
+    initial = [float(np.hypot(*gt.ego_velocity)) for gt in truth]
+    taken: list[list[float]] = [[] for _ in range(n)]
+    returns = [0.0] * n
+    running = list(range(n))
+    keys = list(last[0])
+    limit = sys.maxsize if max_steps is None else max_steps
+    step = 0
+    while running and step < limit:
+        batch = {key: np.stack([obs[key] for obs in last]) for key in keys}
+        actions = np.asarray(policy(batch), dtype=np.float32).reshape(n, -1)
+        step += 1
+        still = []
+        for i in running:
+            action = actions[i].reshape(1)
+            obs, reward, terminated, truncated, info = envs[i].step(action)
+            last[i] = obs
+            truth[i] = info["ground_truth"]
+            taken[i].append(float(action[0]))
+            returns[i] += float(reward)
+            metrics[i].update(truth[i])
+            if not (terminated or truncated):
+                still.append(i)
+        running = still
+    return [
+        Episode(metrics[i].result().as_dict(), taken[i], returns[i], truth[i], initial[i]) for i in range(n)
+    ]

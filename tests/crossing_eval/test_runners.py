@@ -18,7 +18,7 @@ from crossing_eval.runners import (
     _run_local,
     run_tasks,
 )
-from crossing_eval.tasks import EpisodeTask
+from crossing_eval.tasks import BATCH_EPISODES, EpisodeTask
 
 
 def _tasks(n: int, consumed: list[int]) -> Iterator[EpisodeTask]:
@@ -31,13 +31,15 @@ def test_tasks_are_submitted_lazily_and_results_do_not_change() -> None:
     consumed, seen = [0], []
     workers = 2
 
-    def progress() -> None:
-        seen.append(consumed[0] - len(seen) - 1)  # tasks taken but not yet finished
+    def progress(n: int) -> None:
+        for _ in range(n):
+            seen.append(consumed[0] - len(seen) - 1)  # tasks taken but not yet finished
 
     records = _run_local(_tasks(10, consumed), workers, progress)
     assert len(records) == 10 and consumed[0] == 10
-    # At most the in-flight tasks, or the look-ahead for the episode a forking run starts with here.
-    assert max(seen) <= max(IN_FLIGHT_PER_WORKER * workers, FIRST_EPISODE_LOOKAHEAD)
+    # At most the in-flight batches (and the one task read past them), or the look-ahead for the episode a
+    # forking run starts with here.
+    assert max(seen) <= max(IN_FLIGHT_PER_WORKER * workers * BATCH_EPISODES + 1, FIRST_EPISODE_LOOKAHEAD)
     serial = run_tasks(list(_tasks(10, [0])), workers=1, show_progress=False)
     assert [r.key for r in sorted(records, key=lambda r: r.key)] == [r.key for r in serial]
     assert [r.result for r in sorted(records, key=lambda r: r.key)] == [r.result for r in serial]
