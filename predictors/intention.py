@@ -52,7 +52,9 @@ from typing import Any, Literal, NamedTuple
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from numba import njit
 
+from crossing_common.numeric import numpy_maximum, numpy_minimum
 from crossing_env.observation import (
     CROSSING_INTENT_KEY,
     CROSSING_INTENTION_KEY,
@@ -271,57 +273,40 @@ def _intention_parts(
 ) -> _IntentionParts:
     """The horizon-free parts of `crossing_intention` for one observation."""
     c = config
-    ped = obs[PEDESTRIANS_KEY].astype(np.float64)
-    veh = obs[VEHICLES_KEY]
+    ped = np.ascontiguousarray(obs[PEDESTRIANS_KEY], dtype=np.float64)
+    veh = np.ascontiguousarray(obs[VEHICLES_KEY])
     ego = obs[EGO_KEY]
-    present = ped[:, PedestrianColumn.PRESENCE] > 0.5
-    dx, dy = ped[:, PedestrianColumn.DX], ped[:, PedestrianColumn.DY]
-    vx, vy = ped[:, PedestrianColumn.VX], ped[:, PedestrianColumn.VY]
-    on_road = ped[:, PedestrianColumn.ON_ROAD] > 0.5
     speed = max(float(ego[EgoColumn.SPEED]), 0.0)
-    half_len = road_map.ego_length / 2
-
-    # Time until the ego's rear passes the pedestrian's x (the event needs the pedestrian ahead of it).
-    ahead = dx + half_len
-    t_pass = np.where(ahead <= 0.0, 0.0, ahead / max(speed, 1e-3))
-
-    # Where the pedestrian is relative to the nearer kerb and how fast it walks towards the road.
-    south = dy < road_map.kerb_low
-    kerb_dist = np.where(south, road_map.kerb_low - dy, dy - road_map.kerb_high)
-    towards = np.where(south, vy, -vy)
-    waiting = ped[:, PedestrianColumn.WAITING] > 0.5
-    walking_in = (towards > c.towards_speed) & ~waiting
-    # From the spot where it decides to the carriageway: the remaining distance, plus the start from rest.
-    t_enter = np.where(waiting, np.maximum(kerb_dist, 0.0), c.kerb_standoff) / c.walking_speed + c.start_delay
-    t_walk_in = np.maximum(kerb_dist - c.kerb_standoff, 0.0) / np.maximum(towards, c.towards_speed)
-    # Walking along the sidewalk: to the crossing (if any) then to the kerb.
     to_stop_line = float(ego[EgoColumn.DISTANCE_TO_STOP_LINE])
-    cross_dx = to_stop_line + road_map.crossing_offset - dx if road_map.has_crossing else np.zeros_like(dx)
-    along = np.maximum(np.abs(cross_dx) - road_map.crossing_half_width, 0.0)
-    t_along = (along + np.maximum(kerb_dist - c.kerb_standoff, 0.0)) / c.walking_speed
-    t_kerb = np.where(waiting, 0.0, np.where(walking_in, t_walk_in, t_along))
-    walking_away = (towards < -c.towards_speed) & ~waiting
-    to_crossing = (vx * cross_dx > 0.0) | (along <= 1.0)
-    p_along = np.where(to_crossing, c.intent_prior, c.intent_leaving_crossing)
-    p_intent = np.where(
-        waiting,
-        c.intent_waiting,
-        np.where(walking_in, c.intent_towards_road, np.where(walking_away, c.intent_away, p_along)),
+    k = ped.shape[0]
+    present, on_road = np.empty(k, dtype=np.bool_), np.empty(k, dtype=np.bool_)
+    ahead, t_pass, t_kerb, t_enter, p_intent, gap, cross_dx = (np.empty(k) for _ in range(7))
+    _parts_kernel(
+        ped,
+        veh,
+        speed,
+        max(speed, 1e-3),
+        to_stop_line + road_map.crossing_offset,
+        road_map.has_crossing,
+        road_map.ego_length,
+        road_map.kerb_low,
+        road_map.kerb_high,
+        road_map.crossing_half_width,
+        np.array(
+            [
+                c.towards_speed,
+                c.kerb_standoff,
+                c.walking_speed,
+                c.start_delay,
+                c.intent_prior,
+                c.intent_leaving_crossing,
+                c.intent_waiting,
+                c.intent_towards_road,
+                c.intent_away,
+            ]
+        ),
+        (present, on_road, ahead, t_pass, t_kerb, t_enter, p_intent, gap, cross_dx),
     )
-
-    # Gap at the moment the pedestrian would look: first approaching car to reach its x after t_kerb.
-    # Cars as rows (dx, vx, length), the ego first; absent vehicle slots are all zeros, hence not moving.
-    cars = np.empty((veh.shape[0] + 1, 3))
-    cars[0] = (0.0, speed, road_map.ego_length)
-    cars[1:] = veh[:, (VehicleColumn.DX, VehicleColumn.VX, VehicleColumn.LENGTH)]
-    car_spd = np.abs(cars[:, 1])
-    car_half = 0.5 * cars[:, 2]
-    dist = (dx[:, None] - cars[:, 0]) * np.sign(cars[:, 1]) - car_half  # car front to the ped's line
-    tta = np.where(dist >= 0.0, dist / np.maximum(car_spd, 0.3), -1.0)
-    tta[(dist < 0.0) & (dist > -2.0 * car_half - 0.5)] = 0.0  # a car body covering the line
-    tta -= t_kerb[:, None]
-    tta[(tta < 0.0) | (car_spd <= 0.3)] = np.inf  # cars gone by the time it looks, or not moving
-    gap = tta.min(axis=1)
 
     # Decision rate at that gap (tabulated: belief averaged over the unknown critical gap, then CBM or QLB).
     rate = np.interp(gap, GAP_GRID, rate_table)
@@ -330,6 +315,109 @@ def _intention_parts(
         at_crossing = np.abs(cross_dx) <= road_map.crossing_half_width + 1.0
         rate = np.where(at_crossing, np.interp(gap, GAP_GRID, red_rate_table), rate)
     return _IntentionParts(present, on_road, ahead, t_pass, t_kerb, t_enter, p_intent, rate)
+
+
+_P, _X, _Y, _VX, _VY = (
+    int(PedestrianColumn.PRESENCE),
+    int(PedestrianColumn.DX),
+    int(PedestrianColumn.DY),
+    int(PedestrianColumn.VX),
+    int(PedestrianColumn.VY),
+)
+_ON_ROAD, _WAITING = int(PedestrianColumn.ON_ROAD), int(PedestrianColumn.WAITING)
+_CAR_X, _CAR_VX, _CAR_LENGTH = int(VehicleColumn.DX), int(VehicleColumn.VX), int(VehicleColumn.LENGTH)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _parts_kernel(
+    ped: np.ndarray,
+    veh: np.ndarray,
+    speed: float,
+    pass_speed: float,
+    crossing_x: float,
+    has_crossing: bool,
+    ego_length: float,
+    kerb_low: float,
+    kerb_high: float,
+    crossing_half_width: float,
+    c: np.ndarray,
+    out: tuple[np.ndarray, ...],
+) -> None:
+    """`_intention_parts` per pedestrian slot, bit for bit as its numpy form (the same operations in order).
+
+    `crossing_x`: the crossing's x ahead of the ego (stop line plus offset); without a crossing
+    (`has_crossing` False) the distance along the kerb to it is 0. `c`: the `IntentionConfig` fields in
+    the order of the call. Cars are the ego (first) and the vehicle slots; an absent slot is all zeros,
+    hence not moving.
+    """
+    towards_speed, standoff, walking_speed, start_delay = c[0], c[1], c[2], c[3]
+    intent_prior, intent_leaving, intent_waiting, intent_towards, intent_away = c[4], c[5], c[6], c[7], c[8]
+    present, on_road, ahead, t_pass, t_kerb, t_enter, p_intent, gap, cross_dx = out
+    half_len = ego_length / 2
+    for i in range(ped.shape[0]):
+        dx, dy, vx, vy = ped[i, _X], ped[i, _Y], ped[i, _VX], ped[i, _VY]
+        present[i] = ped[i, _P] > 0.5
+        on_road[i] = ped[i, _ON_ROAD] > 0.5
+        # Time until the ego's rear passes the pedestrian's x (the event needs the pedestrian ahead of it).
+        ahead[i] = dx + half_len
+        t_pass[i] = 0.0 if ahead[i] <= 0.0 else ahead[i] / pass_speed
+        # Where the pedestrian is relative to the nearer kerb and how fast it walks towards the road.
+        south = dy < kerb_low
+        kerb_dist = kerb_low - dy if south else dy - kerb_high
+        towards = vy if south else -vy
+        waiting = ped[i, _WAITING] > 0.5
+        walking_in = towards > towards_speed and not waiting
+        # From the spot where it decides to the carriageway: the remaining distance, plus the start from rest.
+        start = numpy_maximum(kerb_dist, 0.0) if waiting else standoff
+        t_enter[i] = start / walking_speed + start_delay
+        to_kerb = numpy_maximum(kerb_dist - standoff, 0.0)
+        t_walk_in = to_kerb / numpy_maximum(towards, towards_speed)
+        # Walking along the sidewalk: to the crossing (if any) then to the kerb.
+        cross_dx[i] = crossing_x - dx if has_crossing else 0.0
+        along = numpy_maximum(abs(cross_dx[i]) - crossing_half_width, 0.0)
+        t_along = (along + to_kerb) / walking_speed
+        t_kerb[i] = 0.0 if waiting else (t_walk_in if walking_in else t_along)
+        walking_away = towards < -towards_speed and not waiting
+        to_crossing = vx * cross_dx[i] > 0.0 or along <= 1.0
+        p_along = intent_prior if to_crossing else intent_leaving
+        if waiting:
+            p_intent[i] = intent_waiting
+        elif walking_in:
+            p_intent[i] = intent_towards
+        elif walking_away:
+            p_intent[i] = intent_away
+        else:
+            p_intent[i] = p_along
+        # Gap at the moment the pedestrian would look: first approaching car to reach its x after t_kerb.
+        first = math.inf
+        for j in range(veh.shape[0] + 1):
+            if j == 0:
+                car_x, car_vx, car_length = 0.0, speed, ego_length
+            else:
+                car_x = float(veh[j - 1, _CAR_X])
+                car_vx = float(veh[j - 1, _CAR_VX])
+                car_length = float(veh[j - 1, _CAR_LENGTH])
+            car_spd = abs(car_vx)
+            car_half = 0.5 * car_length
+            dist = (dx - car_x) * _sign(car_vx) - car_half  # car front to the pedestrian's line
+            tta = dist / numpy_maximum(car_spd, 0.3) if dist >= 0.0 else -1.0
+            if dist < 0.0 and dist > -2.0 * car_half - 0.5:  # a car body covering the line
+                tta = 0.0
+            tta -= t_kerb[i]
+            if tta < 0.0 or car_spd <= 0.3:  # gone by the time it looks, or not moving
+                tta = math.inf
+            first = tta if j == 0 else numpy_minimum(first, tta)
+        gap[i] = first
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _sign(v: float) -> float:
+    """`np.sign` of a float (0.0 for either zero, NaN for NaN)."""
+    if v > 0.0:
+        return 1.0
+    if v < 0.0:
+        return -1.0
+    return 0.0 if v == 0.0 else v
 
 
 def _probability(
