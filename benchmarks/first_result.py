@@ -69,6 +69,12 @@ def main() -> None:
     parser.add_argument("--cold-repeats", type=int, default=1, help="cold smoke runs per tree")
     parser.add_argument("--skip-default", action="store_true", help="skip the default table (minutes)")
     parser.add_argument("--peer", type=Path, default=None, help="another checkout measured interleaved")
+    parser.add_argument(
+        "--peer-warm-elsewhere",
+        type=float,
+        default=None,
+        help="the peer's warm smoke (s) measured on another machine: scales the smoke runs to that machine",
+    )
     args = parser.parse_args()
     if args.repeats < 1 or args.cold_repeats < 0:
         parser.error("--repeats must be >= 1 and --cold-repeats >= 0")
@@ -132,6 +138,18 @@ def main() -> None:
                 " as it was when the issue was filed as the peer: >= 2x)"
             )
         print(f"  this tree against the peer in the same run: {'; '.join(ratios)}")
+        if args.peer_warm_elsewhere is not None:
+            # The peer's code ran the same smoke there and here: its ratio is how much slower this
+            # machine ran today, and the seconds targets were set on that machine.
+            slower = statistics.median(warm["peer"]) / args.peer_warm_elsewhere
+            scaled = f"warm smoke {statistics.median(warm['this tree']) / slower:.1f} s"
+            if cold["this tree"]:
+                scaled += f", cold smoke {statistics.median(cold['this tree']) / slower:.1f} s"
+            print(
+                f"  scaled to the machine where the peer's warm smoke took {args.peer_warm_elsewhere:g} s"
+                f" (here {slower:.2f}x slower): this tree's {scaled} (targets <= {WARM_TARGET_S:g} and"
+                f" <= {COLD_TARGET_S:g} s)"
+            )
 
 
 def _ratio(times: dict[str, list[float]]) -> str:

@@ -17,7 +17,7 @@ import sys
 import threading
 import time
 import traceback
-from collections.abc import Callable, Iterable, Iterator, Sized
+from collections.abc import Callable, Iterable, Iterator, Sequence, Sized
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from contextlib import contextmanager
 from typing import Any
@@ -206,7 +206,9 @@ def _run_local(
             progress(len(done))
         return out
     records: list[EpisodeRecord] = []
-    todo = iter(tasks)
+    # A task list known in full goes to the pool slowest first, so the run does not end with one worker
+    # on a long batch while the other waits; a lazy one only within the look-ahead below.
+    todo = iter(heaviest_first(tasks) if isinstance(tasks, Sequence) else tasks)
     limit = IN_FLIGHT_PER_WORKER * workers
     # fork only while torch is not imported here (`pool_start_method`); the records are the same either way.
     method = pool_start_method()
