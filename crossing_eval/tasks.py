@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 
 import rollout
@@ -186,14 +187,15 @@ def warm_up(task: EpisodeTask, steps: int = WARM_UP_STEPS) -> None:
     the time of a wrapped episode), and the episode itself then runs in a worker beside the others.
     Nothing carries over: every episode starts with `env.reset(seed)` and a fresh policy.
 
-    On a fresh install the trajectory predictor's kernel, the largest, compiles in a forked child while
-    the env's kernels compile here (the first steps without the wrappers); both land in numba's on-disk
-    cache, and the wrapped steps then load it. Only where fork is safe (no torch imported here).
+    On a fresh install the prediction wrappers' kernels (the trajectory predictor's is the largest)
+    compile in a forked child while the env's kernels compile here (the first steps without the
+    wrappers); both land in numba's on-disk cache, and the wrapped steps then load them. Only where fork
+    is safe (no torch imported here).
     """
     env, _ = _cached_env(task)
-    aside = _kernel_to_compile(env)
+    aside = _kernels_to_compile(env)
     if aside is not None and fork_is_safe():
-        child = multiprocessing.get_context("fork").Process(target=aside, name="compile predictor kernel")
+        child = multiprocessing.get_context("fork").Process(target=aside, name="compile predictor kernels")
         child.start()
         try:
             plain, _ = cached_env(task.scenario)
@@ -203,13 +205,27 @@ def warm_up(task: EpisodeTask, steps: int = WARM_UP_STEPS) -> None:
     rollout.run_episode(env, task.seed, policy=build_policy(task.policy, env), max_steps=steps)
 
 
-def _kernel_to_compile(env: Any) -> Callable[[], None] | None:
-    """The call of the first wrapper in `env`'s chain that has an uncompiled kernel (see `warm_up`)."""
-    try:
-        offer = env.get_wrapper_attr("kernel_to_compile")
-    except AttributeError:  # no wrapper in the chain has a kernel of its own
+def _kernels_to_compile(env: Any) -> Callable[[], None] | None:
+    """One call compiling the kernels the wrappers in `env`'s chain offer (see `warm_up`), or None.
+
+    Outermost first; a wrapper offers a kernel only while numba's cache lacks it.
+    """
+    calls = []
+    layer = env
+    while isinstance(layer, gym.Wrapper):
+        offer = getattr(layer, "kernel_to_compile", None)  # the wrapper's own: gymnasium forwards nothing
+        call = offer() if callable(offer) else None
+        if call is not None:
+            calls.append(call)
+        layer = layer.env
+    if not calls:
         return None
-    return offer()
+
+    def compile_all() -> None:
+        for call in calls:
+            call()
+
+    return compile_all
 
 
 def heaviest_first(tasks: Sequence[EpisodeTask]) -> list[EpisodeTask]:

@@ -46,6 +46,7 @@ These are our modelling choices, documented here; the benchmark
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Literal, NamedTuple
 
@@ -281,17 +282,17 @@ def _intention_parts(
     k = ped.shape[0]
     present, on_road = np.empty(k, dtype=np.bool_), np.empty(k, dtype=np.bool_)
     ahead, t_pass, t_kerb, t_enter, p_intent, gap, cross_dx = (np.empty(k) for _ in range(7))
-    _parts_kernel(
+    _parts_kernel(  # scalars as float and bool, so that one compiled signature serves every map
         ped,
         veh,
         speed,
         max(speed, 1e-3),
-        to_stop_line + road_map.crossing_offset,
-        road_map.has_crossing,
-        road_map.ego_length,
-        road_map.kerb_low,
-        road_map.kerb_high,
-        road_map.crossing_half_width,
+        float(to_stop_line + road_map.crossing_offset),
+        bool(road_map.has_crossing),
+        float(road_map.ego_length),
+        float(road_map.kerb_low),
+        float(road_map.kerb_high),
+        float(road_map.crossing_half_width),
         np.array(
             [
                 c.towards_speed,
@@ -434,6 +435,29 @@ def _probability(
     return (prob * parts.present).astype(np.float32)
 
 
+def parts_kernel_is_cached() -> bool:
+    """Whether numba's on-disk cache holds `_parts_kernel`.
+
+    Read from numba's cache index (a private part of numba); if that ever fails, the answer is True, so
+    that nothing is compiled aside and the kernel compiles where it is first called, as it always may.
+    """
+    try:
+        return bool(_parts_kernel._cache._cache_file._load_index())
+    except Exception:
+        return True
+
+
+def compile_parts_kernel() -> None:
+    """Compile `_parts_kernel` for the argument types `_intention_parts` gives it, on an empty scene."""
+    obs = {
+        PEDESTRIANS_KEY: np.zeros((1, len(PedestrianColumn)), dtype=np.float32),
+        VEHICLES_KEY: np.zeros((1, len(VehicleColumn)), dtype=np.float32),
+        EGO_KEY: np.zeros(len(EgoColumn), dtype=np.float32),
+    }
+    table = np.zeros_like(GAP_GRID)
+    _intention_parts(obs, RoadMap(-1.0, 1.0, 4.0, 0.0, 1.0, False, True), IntentionConfig(), table, table)
+
+
 class RoadMapWrapper(gym.ObservationWrapper):
     """An observation wrapper that reads the static road map (`map_from_env`), refreshed at every reset."""
 
@@ -501,6 +525,14 @@ class CrossingIntention(RoadMapWrapper, gym.utils.RecordConstructorArgs):
         out[CROSSING_INTENT_KEY] = (platt(raw, self._calibration) * present).astype(np.float32)
         out[CROSSING_INTENT_BOUND_KEY] = self._bound.copy()
         return out
+
+    def kernel_to_compile(self) -> Callable[[], None] | None:
+        """A call that compiles this wrapper's kernel, where numba's on-disk cache lacks it (else None).
+
+        `crossing_eval.tasks.warm_up` compiles it in a second process, beside the trajectory predictor's,
+        while the env's kernels compile in the first.
+        """
+        return None if parts_kernel_is_cached() else compile_parts_kernel
 
 
 class QLBIntention(CrossingIntention):

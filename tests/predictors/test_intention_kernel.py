@@ -2,6 +2,11 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -21,6 +26,8 @@ from predictors.intention import (
     _IntentionParts,
     look_rate_table,
 )
+
+REPO = Path(__file__).resolve().parents[2]
 
 
 # The numpy form the kernel replaced, kept here as the reference.
@@ -134,3 +141,57 @@ def test_the_kernel_gives_the_numpy_form_bit_for_bit(signalised: bool, has_cross
         for name in _IntentionParts._fields:
             a, b = np.asarray(getattr(got, name)), np.asarray(getattr(want, name))
             assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), name
+
+
+COMPILE_ASIDE = """
+from predictors.intention import compile_parts_kernel, parts_kernel_is_cached
+from rollout import make_env
+wrapper = make_env("zebra_case1", intention="qlb")[0]  # built, never stepped: no env kernel compiles
+assert not parts_kernel_is_cached(), "the cache folder was not empty"
+offer = wrapper.get_wrapper_attr("kernel_to_compile")()
+assert offer is compile_parts_kernel, "nothing offered for compiling on an empty cache"
+offer()
+assert parts_kernel_is_cached(), "the compiled kernel is not in the cache"
+assert wrapper.get_wrapper_attr("kernel_to_compile")() is None, "a cached kernel is offered again"
+"""
+
+
+def test_the_kernel_is_offered_for_compiling_aside_only_while_it_is_not_cached(tmp_path: Path) -> None:
+    """`crossing_eval.tasks.warm_up` compiles it aside on a fresh install, never again once cached."""
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
+    proc = subprocess.run(
+        [sys.executable, "-c", COMPILE_ASIDE], env=env, cwd=REPO, capture_output=True, text=True
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+
+
+def test_compiling_aside_gives_the_signature_a_real_episode_uses() -> None:
+    """What the child compiles is what the wrapped steps call: they find it, they do not compile again."""
+    from predictors import intention
+    from rollout import make_env
+
+    intention.compile_parts_kernel()
+    env, _ = make_env("four_lane_arterial", intention="qlb")
+    env.reset(seed=3)
+    for _ in range(5):
+        env.step(np.zeros(1, dtype=np.float32))
+    assert len(intention._parts_kernel.signatures) == 1
+
+
+def test_warm_up_compiles_what_every_wrapper_offers(monkeypatch: pytest.MonkeyPatch) -> None:
+    from crossing_eval import tasks
+    from rollout import make_env
+
+    env, _ = make_env("zebra_case1", intention="qlb", predictor="s-cgru")
+    called: list[str] = []
+    monkeypatch.setattr("predictors.intention.parts_kernel_is_cached", lambda: False)
+    monkeypatch.setattr("predictors.intention.compile_parts_kernel", lambda: called.append("intention"))
+    monkeypatch.setattr(
+        "predictors.trajectory_wrapper.TrajectoryPrediction.kernel_to_compile",
+        lambda self: lambda: called.append("trajectory"),
+    )
+    compile_all = tasks._kernels_to_compile(env)
+    assert compile_all is not None
+    compile_all()
+    assert sorted(called) == ["intention", "trajectory"]
+    assert tasks._kernels_to_compile(make_env("zebra_case1")[0]) is None  # no wrapper, nothing aside
