@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import csv
+import importlib.util
 import itertools
 import os
 import subprocess
 import sys
+import types
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +17,16 @@ import pytest
 pytest.importorskip("stable_baselines3", reason="stable-baselines3 (test extra) not installed")
 
 REPO = Path(__file__).resolve().parents[2]
+
+
+def _load_recipe(monkeypatch: pytest.MonkeyPatch, name: str) -> types.ModuleType:
+    """`examples/ppo_crossing.py` imported as module `name` (registered while the test runs)."""
+    spec = importlib.util.spec_from_file_location(name, REPO / "examples" / "ppo_crossing.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, module)  # its dataclasses resolve their module by name
+    spec.loader.exec_module(module)
+    return module
 
 
 def _train(tmp_path: Path, *options: str) -> subprocess.CompletedProcess[str]:
@@ -126,16 +138,9 @@ def test_ppo_lagrangian_raises_its_multiplier_while_the_cost_exceeds_the_budget(
 
 def test_ppo_time_reward_replaces_the_cost_of_time(monkeypatch: pytest.MonkeyPatch) -> None:
     """``--time-reward`` reaches the training env's reward (the shielded recipe weighs time more)."""
-    import importlib.util
-
     import numpy as np
 
-    path = REPO / "examples" / "ppo_crossing.py"
-    spec = importlib.util.spec_from_file_location("ppo_crossing_time", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, spec.name, module)  # dataclasses look their module up
-    spec.loader.exec_module(module)
+    module = _load_recipe(monkeypatch, "ppo_crossing_time")
     assert module.parse_args(["--time-reward", "-1"]).time_reward == -1.0
     assert module.parse_args([]).time_reward is None
     terms = {}
@@ -152,18 +157,11 @@ def test_dagger_rounds_are_driven_by_the_actor_and_labelled_by_the_rule(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """A DAgger round steps the env with the actor's action and records the yielding policy's as the label."""
-    import importlib.util
-
     import numpy as np
 
     from crossing_env.observation import EGO_KEY, EgoColumn
 
-    path = REPO / "examples" / "ppo_crossing.py"
-    spec = importlib.util.spec_from_file_location("ppo_crossing_dagger", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, spec.name, module)
-    spec.loader.exec_module(module)
+    module = _load_recipe(monkeypatch, "ppo_crossing_dagger")
     assert module.parse_args(["--bc-steps", "10", "--dagger-rounds", "2"]).dagger_rounds == 2
     env = module.make_env(("zebra_case1",), False)
     keys = list(env.observation_space.spaces)
@@ -185,14 +183,7 @@ def test_dagger_rounds_of_different_training_seeds_drive_different_episodes(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     """No two DAgger rounds, and no two training seeds, share an episode seed (nor the warm start's)."""
-    import importlib.util
-
-    path = REPO / "examples" / "ppo_crossing.py"
-    spec = importlib.util.spec_from_file_location("ppo_crossing_seeds", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, spec.name, module)
-    spec.loader.exec_module(module)
+    module = _load_recipe(monkeypatch, "ppo_crossing_seeds")
     steps, seeds, rounds = 20_000, range(3), range(4)
     spans = [
         range(module.dagger_first_seed(s, r, steps), module.dagger_first_seed(s, r, steps) + steps)

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -156,13 +154,11 @@ assert wrapper.get_wrapper_attr("kernel_to_compile")() is None, "a cached kernel
 """
 
 
-def test_the_kernel_is_offered_for_compiling_aside_only_while_it_is_not_cached(tmp_path: Path) -> None:
+def test_the_kernel_is_offered_for_compiling_aside_only_while_it_is_not_cached(
+    run_with_empty_numba_cache: Callable[[str], None],
+) -> None:
     """`crossing_eval.tasks.warm_up` compiles it aside on a fresh install, never again once cached."""
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
-    proc = subprocess.run(
-        [sys.executable, "-c", COMPILE_ASIDE], env=env, cwd=REPO, capture_output=True, text=True
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    run_with_empty_numba_cache(COMPILE_ASIDE)
 
 
 def test_compiling_aside_gives_the_signature_a_real_episode_uses() -> None:

@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import os
 import shutil
-import subprocess
-import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -139,13 +137,11 @@ assert wrapper.kernel_to_compile() is None, "a cached kernel is offered for comp
 """
 
 
-def test_the_predictor_kernel_is_offered_for_compiling_only_while_it_is_not_cached(tmp_path: Path) -> None:
+def test_the_predictor_kernel_is_offered_for_compiling_only_while_it_is_not_cached(
+    run_with_empty_numba_cache: Callable[[str], None],
+) -> None:
     """`crossing_eval.tasks.warm_up` compiles it aside on a fresh install, never again once cached."""
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
-    proc = subprocess.run(
-        [sys.executable, "-c", COMPILE_ASIDE], env=env, cwd=REPO, capture_output=True, text=True
-    )
-    assert proc.returncode == 0, proc.stderr[-2000:]
+    run_with_empty_numba_cache(COMPILE_ASIDE)
 
 
 def test_the_cvm_has_no_kernel_to_compile() -> None:
