@@ -22,7 +22,6 @@ import numpy as np
 from numba import njit
 
 from agents.config import DrivingConfig
-from crossing_common.numeric import numpy_maximum, numpy_minimum
 from crossing_env.env import acceleration_to_action
 from crossing_env.observation import (
     CROSSING_INTENT_KEY,
@@ -192,6 +191,33 @@ def _flat(*arrays: np.ndarray) -> list[np.ndarray]:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _numpy_pick(a: float, b: float, a_wins: bool) -> float:
+    """What `np.maximum` / `np.minimum` return for two floats, given whether `a` compares better.
+
+    A NaN operand is returned itself (the first if both are NaN); otherwise `a` if it wins, else `b` (so
+    `b` on a tie, as numpy: ±0). Not `crossing_env.safety.geometry`'s `_nan_max` / `_nan_min`, which keep
+    `a` on a tie: the sign of a zero would differ from the numpy forms these kernels replace.
+    """
+    if a != a:
+        return a
+    if b != b:
+        return b
+    return a if a_wins else b
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _nan_max(a: float, b: float) -> float:
+    """`np.maximum` of two floats, as numpy gives it (`_numpy_pick`)."""
+    return _numpy_pick(a, b, a > b)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _nan_min(a: float, b: float) -> float:
+    """`np.minimum` of two floats, as numpy gives it (`_numpy_pick`)."""
+    return _numpy_pick(a, b, a < b)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _travel_time_kernel(d: np.ndarray, v: np.ndarray, accel: float, v_max: float, out: np.ndarray) -> None:
     """`travel_time` for accel > 0 on flat arrays, bit-identical to its numpy form.
 
@@ -199,11 +225,11 @@ def _travel_time_kernel(d: np.ndarray, v: np.ndarray, accel: float, v_max: float
     """
     for i in range(d.shape[0]):
         vi, di = v[i], d[i]
-        vm = numpy_maximum(v_max, vi)
+        vm = _nan_max(v_max, vi)
         t1 = (vm - vi) / accel
         d1 = 0.5 * (vi + vm) * t1
         t_acc = (-vi + np.sqrt(vi * vi + 2.0 * accel * di)) / accel
-        t_cru = t1 + (di - d1) / numpy_maximum(vm, EPS)
+        t_cru = t1 + (di - d1) / _nan_max(vm, EPS)
         out[i] = t_acc if di <= d1 else t_cru
 
 
@@ -241,8 +267,8 @@ def _corridor_kernel(
         if abs(w) > 1e-3:
             ta = (-half_width - p) / w
             tb = (half_width - p) / w
-            enter = numpy_maximum(numpy_minimum(ta, tb), 0.0)
-            leave = numpy_maximum(ta, tb)
+            enter = _nan_max(_nan_min(ta, tb), 0.0)
+            leave = _nan_max(ta, tb)
         elif abs(p) <= half_width:
             enter, leave = 0.0, math.inf
         else:
@@ -295,11 +321,11 @@ def _stop_kernel(
     """`stop_acceleration` on flat arrays, bit-identical to its numpy form (the same operations in order)."""
     for i in range(s.shape[0]):
         si, vi = s[i], v[i]
-        v_allow = np.sqrt(2.0 * decel * numpy_maximum(si, 0.0))
+        v_allow = np.sqrt(2.0 * decel * _nan_max(si, 0.0))
         # Past the target (s < 0) it is too late for a planned stop: brake fully. Within the last 5 cm the
         # distance is floored, so a creeping car is not asked for an absurd deceleration.
         if si >= 0.0:
-            a_req = vi * vi / (2.0 * numpy_maximum(si, 0.05))
+            a_req = vi * vi / (2.0 * _nan_max(si, 0.05))
         else:
             a_req = math.inf if vi > 0.05 else 0.0
         acc = -a_req if a_req > decel else gain * (v_allow - vi)
@@ -307,4 +333,4 @@ def _stop_kernel(
             acc = math.inf
         if si <= 0.3 and vi <= 0.1:  # at the target: hold still
             acc = -decel
-        out[i] = numpy_maximum(acc, -max_decel)
+        out[i] = _nan_max(acc, -max_decel)

@@ -55,7 +55,6 @@ import numpy as np
 from gymnasium import spaces
 from numba import njit
 
-from crossing_common.numeric import numpy_maximum, numpy_minimum
 from crossing_env.observation import (
     CROSSING_INTENT_KEY,
     CROSSING_INTENTION_KEY,
@@ -369,13 +368,13 @@ def _parts_kernel(
         waiting = ped[i, _WAITING] > 0.5
         walking_in = towards > towards_speed and not waiting
         # From the spot where it decides to the carriageway: the remaining distance, plus the start from rest.
-        start = numpy_maximum(kerb_dist, 0.0) if waiting else standoff
+        start = _np_max(kerb_dist, 0.0) if waiting else standoff
         t_enter[i] = start / walking_speed + start_delay
-        to_kerb = numpy_maximum(kerb_dist - standoff, 0.0)
-        t_walk_in = to_kerb / numpy_maximum(towards, towards_speed)
+        to_kerb = _np_max(kerb_dist - standoff, 0.0)
+        t_walk_in = to_kerb / _np_max(towards, towards_speed)
         # Walking along the sidewalk: to the crossing (if any) then to the kerb.
         cross_dx[i] = crossing_x - dx if has_crossing else 0.0
-        along = numpy_maximum(abs(cross_dx[i]) - crossing_half_width, 0.0)
+        along = _np_max(abs(cross_dx[i]) - crossing_half_width, 0.0)
         t_along = (along + to_kerb) / walking_speed
         t_kerb[i] = 0.0 if waiting else (t_walk_in if walking_in else t_along)
         walking_away = towards < -towards_speed and not waiting
@@ -401,14 +400,30 @@ def _parts_kernel(
             car_spd = abs(car_vx)
             car_half = 0.5 * car_length
             dist = (dx - car_x) * _sign(car_vx) - car_half  # car front to the pedestrian's line
-            tta = dist / numpy_maximum(car_spd, 0.3) if dist >= 0.0 else -1.0
+            tta = dist / _np_max(car_spd, 0.3) if dist >= 0.0 else -1.0
             if dist < 0.0 and dist > -2.0 * car_half - 0.5:  # a car body covering the line
                 tta = 0.0
             tta -= t_kerb[i]
             if tta < 0.0 or car_spd <= 0.3:  # gone by the time it looks, or not moving
                 tta = math.inf
-            first = tta if j == 0 else numpy_minimum(first, tta)
+            first = tta if j == 0 else _np_min(first, tta)
         gap[i] = first
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _np_max(a: float, b: float) -> float:
+    """`np.maximum` of two floats as numpy gives it: a NaN operand wins (the first), a tie gives `b` (±0).
+
+    Kept here rather than shared: a kernel calls only kernels of its own module, since numba refreshes a
+    kernel's on-disk cache only when its own file changes (tests/test_lint.py).
+    """
+    return a if a != a else (b if b != b or not a > b else a)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _np_min(a: float, b: float) -> float:
+    """`np.minimum` of two floats as numpy gives it (see `_np_max`)."""
+    return a if a != a else (b if b != b or not a < b else a)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
