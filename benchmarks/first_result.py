@@ -139,15 +139,16 @@ def main() -> None:
             )
         print(f"  this tree against the peer in the same run: {'; '.join(ratios)}")
         if args.peer_warm_elsewhere is not None:
-            # The peer's code ran the same smoke there and here: its ratio is how much slower this
-            # machine ran today, and the seconds targets were set on that machine.
-            slower = statistics.median(warm["peer"]) / args.peer_warm_elsewhere
-            scaled = f"warm smoke {statistics.median(warm['this tree']) / slower:.1f} s"
+            # The peer's code ran the same smoke there and here: its ratio is this machine's pace
+            # today against that one's, and the seconds targets were set on that machine.
+            pace = statistics.median(warm["peer"]) / args.peer_warm_elsewhere
+            scaled = f"warm smoke {statistics.median(warm['this tree']) / pace:.1f} s"
             if cold["this tree"]:
-                scaled += f", cold smoke {statistics.median(cold['this tree']) / slower:.1f} s"
+                scaled += f", cold smoke {statistics.median(cold['this tree']) / pace:.1f} s"
+            here = f"{pace:.2f}x slower" if pace >= 1 else f"{1 / pace:.2f}x faster"
             print(
                 f"  scaled to the machine where the peer's warm smoke took {args.peer_warm_elsewhere:g} s"
-                f" (here {slower:.2f}x slower): this tree's {scaled} (targets <= {WARM_TARGET_S:g} and"
+                f" (this one ran it {here}): this tree's {scaled} (targets <= {WARM_TARGET_S:g} and"
                 f" <= {COLD_TARGET_S:g} s)"
             )
 
