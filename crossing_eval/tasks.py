@@ -21,7 +21,9 @@ import numpy as np
 
 import rollout
 from agents import policy_is_batched, policy_uses_predictors
+from crossing_common import compile_ahead
 from crossing_common.processes import fork_is_safe
+from crossing_env.pedestrians.social_force import walk_step
 from rollout import build_policy, make_env
 
 
@@ -187,19 +189,34 @@ def warm_up(task: EpisodeTask, steps: int = WARM_UP_STEPS) -> None:
     the time of a wrapped episode), and the episode itself then runs in a worker beside the others.
     Nothing carries over: every episode starts with `env.reset(seed)` and a fresh policy.
 
-    On a fresh install the prediction wrappers' kernels (the trajectory predictor's is the largest)
-    compile in a forked child while the env's kernels compile here (the first steps without the
-    wrappers); both land in numba's on-disk cache, and the wrapped steps then load them. Only where fork
-    is safe (no torch imported here).
+    On a fresh install the second core compiles too, in a forked child (only where fork is safe: no torch
+    imported here): first the kernels the prediction wrappers offer (the trajectory predictor's is the
+    largest), then the env's and the policy's kernels, last-called first (`crossing_common.compile_ahead`),
+    while this process compiles them first-called first, on the first steps without the wrappers. Both
+    save to numba's on-disk cache, so each loads what the other has compiled; the wrapped steps then load
+    the wrappers' kernels.
     """
     env, _ = _cached_env(task)
+    plain, _ = cached_env(task.scenario)
+
+    def plain_steps() -> None:
+        rollout.run_episode(plain, task.seed, policy=build_policy(task.policy, plain), max_steps=steps)
+
     aside = _kernels_to_compile(env)
-    if aside is not None and fork_is_safe():
-        child = multiprocessing.get_context("fork").Process(target=aside, name="compile predictor kernels")
+    env_cold = not compile_ahead.is_cached(walk_step)  # every step calls it: it stands for the env's
+    if (aside is not None or env_cold) and fork_is_safe():
+
+        def compile_in_child() -> None:
+            if aside is not None:
+                aside()
+            if env_cold:
+                signatures = compile_ahead.record_signatures(plain_steps)
+                compile_ahead.compile_signatures(reversed(signatures))
+
+        child = multiprocessing.get_context("fork").Process(target=compile_in_child, name="compile kernels")
         child.start()
         try:
-            plain, _ = cached_env(task.scenario)
-            rollout.run_episode(plain, task.seed, policy=build_policy(task.policy, plain), max_steps=steps)
+            plain_steps()
         finally:
             child.join()  # whatever it did, the wrapped steps below compile what is still missing
     rollout.run_episode(env, task.seed, policy=build_policy(task.policy, env), max_steps=steps)

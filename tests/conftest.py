@@ -13,6 +13,9 @@ Property tests scale their own budgets from the loaded profile's `max_examples`.
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -70,3 +73,15 @@ def sb3_zip(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
     save_stats(venv, out / "model.vecnormalize.npz")
     return out / "model.zip"
+
+
+@pytest.fixture
+def run_with_empty_numba_cache(tmp_path: Path) -> Callable[[str], None]:
+    """Runs Python `code` in a fresh process whose numba cache folder is empty; fails on a non-zero exit."""
+
+    def run(code: str) -> None:
+        env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
+        proc = subprocess.run([sys.executable, "-c", code], env=env, cwd=REPO, capture_output=True, text=True)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+
+    return run
