@@ -20,30 +20,22 @@ from typing import Any
 
 import numpy as np
 
-KERNEL_PACKAGES = (
-    "crossing_common",
-    "scenarios",
-    "crossing_env",
-    "predictors",
-    "agents",
-    "rollout",
-    "crossing_replay",
-    "crossing_eval",
-)
-"""The project's packages: only their kernels are recorded."""
-
 Signature = tuple[Any, tuple[Any, ...]]
 """A kernel (numba dispatcher) and the numba types of the positional arguments of one call."""
 
 
-def _kernel_bindings(packages: Iterable[str]) -> list[tuple[ModuleType, str, Any]]:
-    """(module, name, kernel) for every module global bound to a numba kernel in the packages' modules."""
+def _kernel_bindings(packages: Iterable[str] | None = None) -> list[tuple[ModuleType, str, Any]]:
+    """(module, name, kernel) for every module global bound to a numba kernel in the packages' modules.
+
+    Only modules already imported; `packages` None: every one but numba's own.
+    """
     from numba.core.registry import CPUDispatcher
 
-    roots = set(packages)
+    roots = None if packages is None else set(packages)
     bindings = []
     for name, module in list(sys.modules.items()):
-        if module is None or name.split(".")[0] not in roots:
+        root = name.split(".")[0]
+        if module is None or (root == "numba" if roots is None else root not in roots):
             continue
         for attr, value in list(vars(module).items()):
             if isinstance(value, CPUDispatcher):
@@ -51,18 +43,17 @@ def _kernel_bindings(packages: Iterable[str]) -> list[tuple[ModuleType, str, Any
     return bindings
 
 
-def record_signatures(
-    run: Callable[[], object], packages: Iterable[str] = KERNEL_PACKAGES
-) -> list[Signature]:
+def record_signatures(run: Callable[[], object], packages: Iterable[str] | None = None) -> list[Signature]:
     """The kernels `run` calls and their argument types, in the order of their first calls; nothing compiles.
 
-    While `run` runs, each kernel bound to a module global of the packages' imported modules is replaced by a
-    stand-in that notes the numba types of its arguments (as the dispatcher types a call) and runs the
-    kernel's Python function; kernels calling kernels reach the stand-ins through those globals too. The
-    kernels are put back afterwards. A kernel reached otherwise runs compiled and is not recorded. The
-    Python functions need not behave exactly as the compiled kernels (numpy warns where a kernel does not,
-    a Python float raises on division by zero), so warnings are silenced and a run that fails part-way
-    gives the signatures recorded until then: this only decides what compiles ahead.
+    While `run` runs, each kernel bound to a module global of the packages' imported modules (`packages`
+    None: every one but numba's own) is replaced by a stand-in that notes the numba types of its
+    arguments (as the dispatcher types a call) and runs the kernel's Python function; kernels calling
+    kernels reach the stand-ins through those globals too. The kernels are put back afterwards. A kernel
+    reached otherwise runs compiled and is not recorded. The Python functions need not behave exactly as
+    the compiled kernels (numpy warns where a kernel does not, a Python float raises on division by zero),
+    so warnings are silenced and a run that fails part-way gives the signatures recorded until then: this
+    only decides what compiles ahead.
     """
     from numba import typeof
     from numba.core.typing.typeof import Purpose
@@ -98,9 +89,14 @@ def compile_signatures(signatures: Iterable[Signature]) -> None:
     """Compile each kernel for its argument types, in the given order, into numba's on-disk cache.
 
     numba looks in its cache first, so a kernel another process has saved meanwhile is loaded, not compiled.
+    A kernel that does not compile for the recorded types is left for the process that calls it, which
+    compiles it for the types it really gets (and reports any error there, with its caller).
     """
     for kernel, types in signatures:
-        kernel.compile(types)
+        try:
+            kernel.compile(types)
+        except Exception:  # see the docstring: nothing here is the user's error to report
+            continue
 
 
 def is_cached(kernel: Any) -> bool:

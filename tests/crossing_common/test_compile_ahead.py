@@ -25,7 +25,7 @@ def steps():
 kernel = social_force.walk_step
 assert not compile_ahead.is_cached(kernel), "an empty cache reads as holding the kernel"
 signatures = compile_ahead.record_signatures(steps)
-kernels = {id(k): k for _, _, k in compile_ahead._kernel_bindings(compile_ahead.KERNEL_PACKAGES)}
+kernels = {id(k): k for _, _, k in compile_ahead._kernel_bindings()}
 assert social_force.walk_step is kernel, "a kernel was not put back in its module"
 assert not [k.__name__ for k in kernels.values() if k.signatures], "recording compiled a kernel"
 names = {k.py_func.__module__ + "." + k.__name__ for k, _ in signatures}
@@ -94,6 +94,17 @@ def test_a_run_that_fails_part_way_gives_what_it_recorded_and_puts_the_kernels_b
         (kernel, ("float64", "float64")),
         (view._numpy_pick, ("float64", "float64", "bool")),  # called by the kernel's Python function
     ]
+
+
+def test_a_kernel_that_does_not_compile_for_recorded_types_is_left_and_the_rest_compile() -> None:
+    from numba import njit, types
+
+    @njit
+    def add_one(x: int) -> int:  # a kernel of this test, not cached
+        return x + 1
+
+    compile_ahead.compile_signatures([(add_one, (types.unicode_type,)), (add_one, (types.int64,))])
+    assert add_one.signatures == [(types.int64,)]
 
 
 def test_a_kernel_without_a_readable_cache_index_reads_as_cached() -> None:
