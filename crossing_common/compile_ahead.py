@@ -8,10 +8,18 @@ forty steps of an episode take about 0.1 s), and `compile_signatures` compiles t
 The two processes meet in the middle: a kernel the first one reaches after the second has saved it is
 loaded from the cache, and every kernel compiles from the same source and types either way, so the
 machine code is the same.
+
+numba's cache has no lock: a process that saves a kernel writes its index before its data file, and two
+processes saving different signatures of one kernel at once can give both the same data file. So
+`ahead_of_time` keeps only what cannot meet either hazard: kernels of modules that had no cache file at
+all when the run began (no stale data file to read in that window) and none of whose kernels was
+recorded with more than one signature (kernels call only kernels of their own module, so a nested
+compile stays inside such a module).
 """
 
 from __future__ import annotations
 
+import os
 import sys
 import warnings
 from collections.abc import Callable, Iterable
@@ -83,6 +91,43 @@ def record_signatures(run: Callable[[], object], packages: Iterable[str] | None 
         for module, attr, kernel in bindings:
             setattr(module, attr, kernel)
     return list(recorded.values())
+
+
+def modules_without_cache(packages: Iterable[str] | None = None) -> set[str]:
+    """The imported modules of the packages that define cached kernels and have no cache file for any yet.
+
+    On a fresh install: every module with kernels. Read from numba's cache layout (a private part of
+    numba); a kernel whose index path cannot be read makes its module count as cached (nothing ahead).
+    """
+    fresh: dict[str, bool] = {}
+    for module, _, kernel in _kernel_bindings(packages):
+        name = kernel.py_func.__module__
+        if name != module.__name__:
+            continue  # bound here, defined elsewhere
+        try:
+            absent = not os.path.exists(kernel._cache._cache_file._index_path)
+        except Exception:  # not a cached kernel (numba's NullCache), or numba's layout changed
+            absent = False
+        fresh[name] = fresh.get(name, True) and absent
+    return {name for name, absent in fresh.items() if absent}
+
+
+def ahead_of_time(signatures: Iterable[Signature], fresh_modules: set[str]) -> list[Signature]:
+    """The `signatures` safe to compile beside a process that compiles the same kernels.
+
+    Those of kernels in `fresh_modules` whose module has no kernel recorded with several signatures (see
+    the module docstring), in their order.
+    """
+    signatures = list(signatures)
+    seen: dict[int, int] = {}
+    for kernel, _ in signatures:
+        seen[id(kernel)] = seen.get(id(kernel), 0) + 1
+    several = {kernel.py_func.__module__ for kernel, _ in signatures if seen[id(kernel)] > 1}
+    return [
+        (kernel, types)
+        for kernel, types in signatures
+        if kernel.py_func.__module__ in fresh_modules and kernel.py_func.__module__ not in several
+    ]
 
 
 def compile_signatures(signatures: Iterable[Signature]) -> None:

@@ -193,25 +193,27 @@ def warm_up(task: EpisodeTask, steps: int = WARM_UP_STEPS) -> None:
     imported here): first the kernels the prediction wrappers offer (the trajectory predictor's is the
     largest), then the env's and the policy's kernels, last-called first (`crossing_common.compile_ahead`),
     while this process compiles them first-called first, on the first steps without the wrappers. Both
-    save to numba's on-disk cache, so each loads what the other has compiled; the wrapped steps then load
-    the wrappers' kernels.
+    save to numba's on-disk cache, so each loads what the other has compiled (only modules with no cache
+    file yet, whose kernels have one signature each: `compile_ahead.ahead_of_time`); the wrapped steps then
+    load the wrappers' kernels.
     """
     env, _ = _cached_env(task)
-    plain, _ = cached_env(task.scenario)
 
     def plain_steps() -> None:
+        plain, _ = cached_env(task.scenario)
         rollout.run_episode(plain, task.seed, policy=build_policy(task.policy, plain), max_steps=steps)
 
     aside = _kernels_to_compile(env)
     env_cold = not compile_ahead.is_cached(walk_step)  # every step calls it: it stands for the env's
     if (aside is not None or env_cold) and fork_is_safe():
+        fresh = compile_ahead.modules_without_cache() if env_cold else set()
 
         def compile_in_child() -> None:
             if aside is not None:
                 aside()
-            if env_cold:
+            if fresh:
                 signatures = compile_ahead.record_signatures(plain_steps)
-                compile_ahead.compile_signatures(reversed(signatures))
+                compile_ahead.compile_signatures(reversed(compile_ahead.ahead_of_time(signatures, fresh)))
 
         child = multiprocessing.get_context("fork").Process(target=compile_in_child, name="compile kernels")
         child.start()

@@ -24,9 +24,14 @@ def steps():
 
 kernel = social_force.walk_step
 assert not compile_ahead.is_cached(kernel), "an empty cache reads as holding the kernel"
+fresh = compile_ahead.modules_without_cache()
+assert {"crossing_env.pedestrians.social_force", "agents.view"} <= fresh, fresh
+bindings = [(m.__name__, name, id(k)) for m, name, k in compile_ahead._kernel_bindings()]
 signatures = compile_ahead.record_signatures(steps)
 kernels = {id(k): k for _, _, k in compile_ahead._kernel_bindings()}
-assert social_force.walk_step is kernel, "a kernel was not put back in its module"
+assert [(m.__name__, name, id(k)) for m, name, k in compile_ahead._kernel_bindings()] == bindings, (
+    "a kernel was not put back where it was bound"
+)
 assert not [k.__name__ for k in kernels.values() if k.signatures], "recording compiled a kernel"
 names = {k.py_func.__module__ + "." + k.__name__ for k, _ in signatures}
 expected = {
@@ -36,8 +41,11 @@ expected = {
 assert expected <= names, names
 assert any(name.startswith("agents.") for name in names), "the policy's kernels are not recorded"
 
-compile_ahead.compile_signatures(reversed(signatures))
+ahead = compile_ahead.ahead_of_time(signatures, fresh)
+assert ahead == signatures, "a kernel of the env or the policy is not compiled ahead (several signatures?)"
+compile_ahead.compile_signatures(reversed(ahead))
 assert compile_ahead.is_cached(kernel), "a compiled kernel is not in the cache"
+assert "crossing_env.pedestrians.social_force" not in compile_ahead.modules_without_cache()
 before = {i: list(k.signatures) for i, k in kernels.items()}
 steps()
 after = {i: list(k.signatures) for i, k in kernels.items()}
@@ -105,6 +113,22 @@ def test_a_kernel_that_does_not_compile_for_recorded_types_is_left_and_the_rest_
 
     compile_ahead.compile_signatures([(add_one, (types.unicode_type,)), (add_one, (types.int64,))])
     assert add_one.signatures == [(types.int64,)]
+
+
+def test_only_fresh_modules_whose_kernels_have_one_signature_compile_ahead() -> None:
+    """Two processes saving different signatures of one kernel at once can share a data file in numba's
+    cache, and a module with cache files may hold stale ones: neither is compiled ahead."""
+    from numba import types
+
+    from agents import view
+    from crossing_env.pedestrians import social_force
+
+    one = (social_force.walk_step, (types.float64,))
+    several = [(view._nan_max, (types.float64, types.float64)), (view._nan_max, (types.int64, types.int64))]
+    other_of_that_module = (view._stop_kernel, (types.float64,))
+    fresh = {"agents.view", "crossing_env.pedestrians.social_force"}
+    assert compile_ahead.ahead_of_time([*several, one, other_of_that_module], fresh) == [one]
+    assert compile_ahead.ahead_of_time([one, other_of_that_module], {"agents.view"}) == [other_of_that_module]
 
 
 def test_a_kernel_without_a_readable_cache_index_reads_as_cached() -> None:
