@@ -22,6 +22,7 @@ from __future__ import annotations
 import os
 import sys
 import warnings
+from collections import Counter
 from collections.abc import Callable, Iterable
 from types import ModuleType
 from typing import Any
@@ -119,10 +120,8 @@ def ahead_of_time(signatures: Iterable[Signature], fresh_modules: set[str]) -> l
     the module docstring), in their order.
     """
     signatures = list(signatures)
-    seen: dict[int, int] = {}
-    for kernel, _ in signatures:
-        seen[id(kernel)] = seen.get(id(kernel), 0) + 1
-    several = {kernel.py_func.__module__ for kernel, _ in signatures if seen[id(kernel)] > 1}
+    calls = Counter(id(kernel) for kernel, _ in signatures)
+    several = {kernel.py_func.__module__ for kernel, _ in signatures if calls[id(kernel)] > 1}
     return [
         (kernel, types)
         for kernel, types in signatures

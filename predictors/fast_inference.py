@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit
 
+from crossing_common import compile_ahead
 from predictors.constants import OBS_LEN, PRED_LEN
 
 if TYPE_CHECKING:
@@ -293,14 +294,10 @@ class FastPredictor:
 def kernel_is_cached() -> bool:
     """Whether numba's on-disk cache holds a compiled `_rollout_kernel` for this source file.
 
-    Read from numba's cache index (a private part of numba); if that ever fails, the answer is True, so
-    that nothing is compiled aside (`crossing_eval.tasks.warm_up`) and the kernel compiles where it is
-    first called, as it always may.
+    `crossing_common.compile_ahead.is_cached`: True where numba's index cannot be read, so that nothing
+    is compiled aside (`crossing_eval.tasks.warm_up`) and the kernel compiles where it is first called.
     """
-    try:
-        return bool(_rollout_kernel._cache._cache_file._load_index())
-    except Exception:
-        return True
+    return compile_ahead.is_cached(_rollout_kernel)
 
 
 KERNEL_SUFFIX = ".kernel.npz"

@@ -55,6 +55,7 @@ import numpy as np
 from gymnasium import spaces
 from numba import njit
 
+from crossing_common import compile_ahead
 from crossing_env.observation import (
     CROSSING_INTENT_KEY,
     CROSSING_INTENTION_KEY,
@@ -453,13 +454,10 @@ def _probability(
 def parts_kernel_is_cached() -> bool:
     """Whether numba's on-disk cache holds `_parts_kernel`.
 
-    Read from numba's cache index (a private part of numba); if that ever fails, the answer is True, so
-    that nothing is compiled aside and the kernel compiles where it is first called, as it always may.
+    `crossing_common.compile_ahead.is_cached`: True where numba's index cannot be read, so that nothing
+    is compiled aside and the kernel compiles where it is first called.
     """
-    try:
-        return bool(_parts_kernel._cache._cache_file._load_index())
-    except Exception:
-        return True
+    return compile_ahead.is_cached(_parts_kernel)
 
 
 def compile_parts_kernel() -> None:

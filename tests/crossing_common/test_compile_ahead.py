@@ -54,13 +54,14 @@ assert not new, f"the compiled run needed argument types the recording did not s
 """
 
 WARM_UP_ON_AN_EMPTY_CACHE = """
+from crossing_common import compile_ahead
 from crossing_eval import tasks
 from crossing_env.pedestrians import social_force
 
 task = tasks.make_tasks(["zebra_case1"], ["always_cautious"], 1, 3)[0]
 assert not social_force.walk_step.stats.cache_hits
 tasks.warm_up(task)
-hits = [k.__name__ for _, _, k in tasks.compile_ahead._kernel_bindings(["crossing_env", "agents"])
+hits = [k.__name__ for _, _, k in compile_ahead._kernel_bindings(["crossing_env", "agents"])
         if sum(k.stats.cache_hits.values())]
 assert hits, "the warm-up loaded no kernel its child compiled"
 """
