@@ -42,6 +42,7 @@ INFO_KEYS: tuple[str, ...] = (
     "rewards",
     "time",
     "crashed",
+    "collisions",
     "passed_crossing",
     "is_success",
     "cost",
@@ -54,6 +55,9 @@ INFO_KEYS: tuple[str, ...] = (
 - ``rewards``: the named reward terms (``{}`` after `reset`);
 - ``time``: simulation time (s);
 - ``crashed``: bool, an ego collision began in this step (highway-env's name);
+- ``collisions``: one dict per ego collision that began in this step: ``kind`` ('pedestrian', 'vehicle' or
+  'static'), ``at_fault`` (bool, nuPlan's rule: `crossing_env.collision_fault`), ``contact_type`` (nuPlan's
+  class), ``other_id`` and ``relative_speed`` (m/s); ``()`` when none;
 - ``passed_crossing``: bool, the ego's rear is past the crossing's far edge (the conflict area's x_max);
 - ``is_success``: bool, ``passed_crossing`` with no collision and no violated yield obligation so far in
   the episode (SB3's ``Monitor``/``EvalCallback`` read it at the episode's end);
@@ -244,6 +248,16 @@ class CrossingEnv(gym.Env[CrossingObs, np.ndarray]):
             "rewards": rewards,
             "time": gt.time,
             "crashed": bool(gt.collisions),
+            "collisions": tuple(
+                {
+                    "kind": ev.kind,
+                    "at_fault": bool(ev.at_fault),
+                    "contact_type": ev.contact_type,
+                    "other_id": int(ev.other_id),
+                    "relative_speed": float(ev.relative_speed),
+                }
+                for ev in gt.collisions
+            ),
             "passed_crossing": passed,
             "is_success": passed and not self._collided and not self._violated,
             "cost": float(sum(costs.values())),

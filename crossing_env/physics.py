@@ -42,6 +42,14 @@ class Contact:
     pedestrian_slot: int
     point: tuple[float, float]
     relative_speed: float
+    car_position: tuple[float, float]
+    """The car's centre when the contact began (inside the step's substeps)."""
+    car_speed: float
+    """The car's speed then (m/s)."""
+    pedestrian_position: tuple[float, float]
+    """The pedestrian's centre then."""
+    pedestrian_speed: float
+    """The pedestrian's speed then (m/s)."""
 
 
 def _on_car_pedestrian(arbiter: pymunk.Arbiter, space: pymunk.Space, data: list[Contact]) -> None:
@@ -49,8 +57,20 @@ def _on_car_pedestrian(arbiter: pymunk.Arbiter, space: pymunk.Space, data: list[
     car_shape, ped_shape = arbiter.shapes
     points = arbiter.contact_point_set.points
     point = points[0].point_a if points else car_shape.body.position
-    rel = car_shape.body.velocity - ped_shape.body.velocity
-    data.append(Contact(car_shape.slot, ped_shape.slot, (float(point.x), float(point.y)), float(rel.length)))
+    car, ped = car_shape.body, ped_shape.body
+    rel = car.velocity - ped.velocity
+    data.append(
+        Contact(
+            car_shape.slot,
+            ped_shape.slot,
+            (float(point.x), float(point.y)),
+            float(rel.length),
+            (float(car.position.x), float(car.position.y)),
+            float(car.velocity.length),
+            (float(ped.position.x), float(ped.position.y)),
+            float(ped.velocity.length),
+        )
+    )
 
 
 class PhysicsWorld:

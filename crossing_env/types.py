@@ -42,7 +42,8 @@ class CollisionEvent:
     time: float
     """Simulation time in seconds."""
     kind: str
-    """'pedestrian' or 'vehicle'."""
+    """What was hit: 'pedestrian', 'vehicle' or 'static' (`crossing_env.collision_fault.COLLISION_KINDS`);
+    'background' for a background car–pedestrian contact (`GroundTruth.extras`)."""
     other_id: int
     """Id of the pedestrian or vehicle hit."""
     position: tuple[float, float]
@@ -51,6 +52,12 @@ class CollisionEvent:
     """Speed of the ego relative to the other body at contact, m/s (impact speed)."""
     compliant: bool
     """For pedestrians: True if the pedestrian was crossing legally (on the zebra, not on red)."""
+    contact_type: str = ""
+    """The ego collision's class in nuPlan's terms (`crossing_env.collision_fault.CONTACT_TYPES`); "" for
+    background contacts."""
+    at_fault: bool = False
+    """The ego is at fault (nuPlan's rule, `crossing_env.collision_fault`): it hit with its front while both
+    moved, or hit a stopped body; never for background contacts."""
 
 
 @dataclass(frozen=True)

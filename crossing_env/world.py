@@ -7,9 +7,18 @@ Gymnasium. The env turns its state into observations and rewards; metrics and re
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
+from crossing_env.collision_fault import (
+    AT_FAULT_TYPES,
+    contact_type,
+    front_touches_box,
+    front_touches_disc,
+    is_behind,
+)
 from crossing_env.conflict import ConflictScript, draw_plan, occluder_slot
 from crossing_env.pedestrians.crossing_decisions import CrossingDecisionModel, make_decision_model
 from crossing_env.pedestrians.population import CarSnapshot, PedestrianPopulation
@@ -161,15 +170,32 @@ class World:
     def _record_contacts(self, contacts: list) -> None:
         self.collisions = []
         self.background_collisions = []
+        tr = self.traffic
+        heading = 0.0 if tr.direction[0] > 0 else math.pi
         for c in contacts:
             ego = c.vehicle_slot == 0
+            kind, fault = "background", ""
+            if ego:
+                kind = "pedestrian"
+                (ex, ey), (px, py) = c.car_position, c.pedestrian_position
+                length, width = float(tr.length[0]), float(tr.width[0])
+                radius = float(self.pedestrians.radius[c.pedestrian_slot])
+                fault = contact_type(
+                    c.car_speed,
+                    c.pedestrian_speed,
+                    other_static=False,
+                    other_behind=is_behind(ex, ey, heading, length, px, py),
+                    front_touch=front_touches_disc(ex, ey, heading, length, width, px, py, radius),
+                )
             event = CollisionEvent(
                 time=round(self.time, 9),
-                kind="pedestrian" if ego else "background",
+                kind=kind,
                 other_id=int(self.pedestrians.ids[c.pedestrian_slot]),
                 position=c.point,
                 relative_speed=c.relative_speed,
                 compliant=bool(self.ped_legal[c.pedestrian_slot]),
+                contact_type=fault,
+                at_fault=fault in AT_FAULT_TYPES,
             )
             (self.collisions if ego else self.background_collisions).append(event)
         self.background_contacts += len(self.background_collisions)
@@ -178,16 +204,33 @@ class World:
         """Kinematic bodies never collide in pymunk: ego–car contact is `_new_ego_overlaps`."""
         tr = self.traffic
         new = _new_ego_overlaps(tr.active, tr.lane, tr.parked, tr.x, tr.length, self._ego_vehicle_contact)
+        sign = float(tr.direction[0])
+        heading = 0.0 if sign > 0 else math.pi
+        length = float(tr.length[0])
         for i in new:
-            rel = abs(tr.speed[0] - tr.speed[i] * tr.direction[i])
+            rel = abs(tr.speed[0] * tr.direction[0] - tr.speed[i] * tr.direction[i])
+            static = bool(tr.parked[i])
+            fault = contact_type(
+                float(abs(tr.speed[0])),
+                float(abs(tr.speed[i])),
+                other_static=static,
+                other_behind=is_behind(
+                    float(tr.x[0]), float(tr.y[0]), heading, length, float(tr.x[i]), float(tr.y[i])
+                ),
+                front_touch=front_touches_box(
+                    float(tr.x[0]), length, sign, float(tr.x[i]), float(tr.length[i])
+                ),
+            )
             self.collisions.append(
                 CollisionEvent(
                     time=round(self.time, 9),
-                    kind="vehicle",
+                    kind="static" if static else "vehicle",
                     other_id=int(tr.ids[i]),
                     position=(float((tr.x[0] + tr.x[i]) / 2), float(tr.y[0])),
                     relative_speed=float(rel),
                     compliant=True,
+                    contact_type=fault,
+                    at_fault=fault in AT_FAULT_TYPES,
                 )
             )
 

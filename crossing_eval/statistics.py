@@ -66,7 +66,10 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
 
     Keys (floats may be nan when undefined; pass through `json_safe` before writing JSON):
     episodes; collision_rate and collision_ci95 (any collision, Wilson); pedestrian_collision_rate and
-    pedestrian_collision_ci95; compliant/noncompliant_pedestrian_collisions; mean_impact_speed;
+    pedestrian_collision_ci95; pedestrian_at_fault_collision_rate and _ci95 (episodes with an at-fault
+    pedestrian collision, `crossing_env.collision_fault`); vehicle_collision_rate,
+    vehicle_at_fault_collision_rate and _ci95; static_collisions (contacts);
+    compliant/noncompliant_pedestrian_collisions; mean_impact_speed;
     min_ttc_p5/p50 (episode minima, inf ignored), min_ttc_finite_fraction (episodes with a finite minimum
     TTC, to read the percentiles against) and serious_conflict_rate (episodes with min TTC <
     `serious_ttc`); min_separation_min/p5/p50 (episode minima, the smallest over episodes first) and
@@ -92,6 +95,9 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
 
     collisions = sum(r.collision for r in results)
     ped_coll = sum(r.pedestrian_collisions > 0 for r in results)
+    ped_fault = sum(r.pedestrian_collisions_at_fault > 0 for r in results)
+    veh_coll = sum(r.vehicle_collisions > 0 for r in results)
+    veh_fault = sum(r.vehicle_collisions_at_fault > 0 for r in results)
     min_ttc = col("min_ttc")
     pet_p = col("min_pet_pedestrian_first")
     pet_e = col("min_pet_ego_first")
@@ -116,6 +122,12 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
         "collision_ci95": wilson_interval(collisions, n),
         "pedestrian_collision_rate": ped_coll / n,
         "pedestrian_collision_ci95": wilson_interval(ped_coll, n),
+        "pedestrian_at_fault_collision_rate": ped_fault / n,
+        "pedestrian_at_fault_collision_ci95": wilson_interval(ped_fault, n),
+        "vehicle_collision_rate": veh_coll / n,
+        "vehicle_at_fault_collision_rate": veh_fault / n,
+        "vehicle_at_fault_collision_ci95": wilson_interval(veh_fault, n),
+        "static_collisions": sum(r.static_collisions for r in results),
         "compliant_pedestrian_collisions": sum(r.compliant_pedestrian_collisions for r in results),
         "noncompliant_pedestrian_collisions": sum(r.noncompliant_pedestrian_collisions for r in results),
         "mean_impact_speed": _mean(col("max_impact_speed")),

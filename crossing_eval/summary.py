@@ -42,6 +42,19 @@ TABLE_COLUMNS: tuple[Column, ...] = (
         " interval.",
     ),
     Column(
+        "ped. at fault",
+        "pedestrian_at_fault_collision_rate",
+        "Fraction of episodes in which the ego hit a pedestrian and was at fault (nuPlan's rule: it hit with"
+        " its front while both moved, or hit a pedestrian standing still; not when the ego stood still or"
+        " was walked into from the side or behind).",
+    ),
+    Column(
+        "veh. at fault",
+        "vehicle_at_fault_collision_rate",
+        "Fraction of episodes in which the ego hit a vehicle and was at fault (nuPlan's rule: a rear-end"
+        " crash into a car ahead, moving or stopped; not when the ego stood still or was hit from behind).",
+    ),
+    Column(
         "min sep m (min/p50)",
         None,
         "Each episode's minimum ego-pedestrian footprint distance (box to disc, m; negative = overlap):"
@@ -175,6 +188,8 @@ def _row(name: str, agg: dict[str, Any]) -> list[str]:
         name,
         str(agg["episodes"]),
         f"{agg['collision_rate']:.3f} [{lo:.3f}, {hi:.3f}]",
+        f"{agg['pedestrian_at_fault_collision_rate']:.3f}",
+        f"{agg['vehicle_at_fault_collision_rate']:.3f}",
         sep,
         ttc,
         _fmt(agg["pet_pedestrian_first_p5"]),

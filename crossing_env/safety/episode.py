@@ -80,6 +80,8 @@ class EpisodeMetrics:
       still open at the end count as compliant. The German "influenced" test (pedestrian forced to slow
       down) is not applied: it would need the pedestrian's desired speed, which the ground truth does
       not carry.
+    - Collisions: counted by kind (pedestrian, vehicle, static) and, apart, those in which the ego was at
+      fault (`crossing_env.collision_fault`: nuPlan's rule, decided when the contact began).
     - Delay: from t = 0 at `EgoConfig.x` until the ego centre passes `conflict_area.x_max + delay_margin`
       (linear interpolation between steps), minus that distance at the speed limit.
     - Speeding: each step's ego speed along the road minus `RoadConfig.speed_limit` (as the reward's
@@ -115,6 +117,9 @@ class EpisodeMetrics:
         # collisions
         self._ped_collisions = 0
         self._veh_collisions = 0
+        self._ped_at_fault = 0
+        self._veh_at_fault = 0
+        self._static_collisions = 0
         self._compliant_collisions = 0
         self._max_impact = math.nan
         self._bg_collisions = 0
@@ -232,11 +237,15 @@ class EpisodeMetrics:
         for ev in gt.collisions:
             if ev.kind == "pedestrian":
                 self._ped_collisions += 1
+                self._ped_at_fault += bool(ev.at_fault)
                 self._compliant_collisions += bool(ev.compliant)
                 if not ev.relative_speed <= self._max_impact:  # also replaces the initial nan
                     self._max_impact = float(ev.relative_speed)
+            elif ev.kind == "static":
+                self._static_collisions += 1
             else:
                 self._veh_collisions += 1
+                self._veh_at_fault += bool(ev.at_fault)
         for ev in gt.extras.get("background_collisions", ()):
             self._bg_collisions += 1
             self._bg_legal += bool(ev.compliant)
@@ -421,7 +430,7 @@ class EpisodeMetrics:
             scenario=self.scenario.name,
             duration=self._time,
             steps=self._steps,
-            collision=self._ped_collisions + self._veh_collisions > 0,
+            collision=self._ped_collisions + self._veh_collisions + self._static_collisions > 0,
             pedestrian_collisions=self._ped_collisions,
             vehicle_collisions=self._veh_collisions,
             compliant_pedestrian_collisions=self._compliant_collisions,
@@ -462,6 +471,9 @@ class EpisodeMetrics:
             unneeded_stops=unneeded,
             max_speed_over_limit=self._max_over,
             time_over_speed_limit=self._over_time,
+            pedestrian_collisions_at_fault=self._ped_at_fault,
+            vehicle_collisions_at_fault=self._veh_at_fault,
+            static_collisions=self._static_collisions,
         )
 
 

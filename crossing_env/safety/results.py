@@ -73,7 +73,17 @@ DEFAULT_METRICS = MetricsConfig()
 config, so checking that both use the same thresholds is an identity test)."""
 
 # Fields added later, with defaults: older logs without them still load.
-_OPTIONAL_FIELDS = frozenset({"stops", "unneeded_stops", "max_speed_over_limit", "time_over_speed_limit"})
+_OPTIONAL_FIELDS = frozenset(
+    {
+        "stops",
+        "unneeded_stops",
+        "max_speed_over_limit",
+        "time_over_speed_limit",
+        "pedestrian_collisions_at_fault",
+        "vehicle_collisions_at_fault",
+        "static_collisions",
+    }
+)
 
 # Fields whose "missing" value means "never happened" (inf) rather than "undefined" (nan).
 _INF_FIELDS = frozenset(
@@ -99,11 +109,11 @@ class EpisodeResult:
     steps: int
     """Number of updates."""
     collision: bool
-    """Any ego collision (pedestrian or vehicle)."""
+    """Any ego collision (pedestrian, vehicle or static), at fault or not."""
     pedestrian_collisions: int
     """Number of ego–pedestrian contacts."""
     vehicle_collisions: int
-    """Number of ego–vehicle contacts."""
+    """Number of ego–vehicle contacts (moving road users' vehicles; static bodies apart)."""
     compliant_pedestrian_collisions: int
     """Contacts with pedestrians crossing legally (`CollisionEvent.compliant`)."""
     noncompliant_pedestrian_collisions: int
@@ -180,6 +190,13 @@ class EpisodeResult:
     """Largest ego speed above the scenario's speed limit (`RoadConfig.speed_limit`); 0 if never above."""
     time_over_speed_limit: float = 0.0
     """Time the ego drove faster than the speed limit (steps above it × dt)."""
+    pedestrian_collisions_at_fault: int = 0
+    """Ego–pedestrian contacts with the ego at fault (nuPlan's rule, `crossing_env.collision_fault`)."""
+    vehicle_collisions_at_fault: int = 0
+    """Ego–vehicle contacts in which the ego was at fault (a rear-end crash into a car ahead, say)."""
+    static_collisions: int = 0
+    """Ego contacts with static bodies (always at fault, unless the ego stood still); 0 on the built-in roads,
+    where nothing static stands in the ego's lane."""
 
     @property
     def yield_compliance(self) -> float:

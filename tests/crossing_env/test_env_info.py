@@ -119,6 +119,11 @@ def test_a_collision_is_crashed_and_costs_one_and_never_a_success():
     assert totals["collision"] == 1.0 and totals["near_miss"] > 0  # the approach was a near miss first
     assert sum(i["crashed"] for i in infos) == 1
     assert not any(i["is_success"] for i in infos)
+    # The collision is told apart: a pedestrian hit with the moving car's front, at fault.
+    assert [len(i["collisions"]) for i in infos] == [int(i["crashed"]) for i in infos]
+    (hit,) = last["collisions"]
+    assert hit["kind"] == "pedestrian" and hit["at_fault"] is True
+    assert hit["contact_type"] in {"active_front", "stopped_track"} and hit["relative_speed"] > 0.0
 
 
 def test_passing_cleanly_is_a_success_once_the_rear_is_past_the_crossing():

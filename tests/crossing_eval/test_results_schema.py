@@ -209,6 +209,9 @@ def recompute(eps: Sequence[Episode], durations: dict[str, float]) -> dict[str, 
     n = len(eps)
     coll = sum(e["metrics"]["collision"] for e in eps)
     ped = sum(e["metrics"]["pedestrian_collisions"] > 0 for e in eps)
+    ped_fault = sum(e["metrics"]["pedestrian_collisions_at_fault"] > 0 for e in eps)
+    veh = sum(e["metrics"]["vehicle_collisions"] > 0 for e in eps)
+    veh_fault = sum(e["metrics"]["vehicle_collisions_at_fault"] > 0 for e in eps)
     bg = sum(e["metrics"]["background_collisions"] > 0 for e in eps)
     compliant, obligations = total(eps, "yield_compliant"), total(eps, "yield_obligations")
 
@@ -225,6 +228,12 @@ def recompute(eps: Sequence[Episode], durations: dict[str, float]) -> dict[str, 
         "collision_ci95": wilson(coll, n),
         "pedestrian_collision_rate": ped / n,
         "pedestrian_collision_ci95": wilson(ped, n),
+        "pedestrian_at_fault_collision_rate": ped_fault / n,
+        "pedestrian_at_fault_collision_ci95": wilson(ped_fault, n),
+        "vehicle_collision_rate": veh / n,
+        "vehicle_at_fault_collision_rate": veh_fault / n,
+        "vehicle_at_fault_collision_ci95": wilson(veh_fault, n),
+        "static_collisions": total(eps, "static_collisions"),
         "compliant_pedestrian_collisions": total(eps, "compliant_pedestrian_collisions"),
         "noncompliant_pedestrian_collisions": total(eps, "noncompliant_pedestrian_collisions"),
         "mean_impact_speed": avg("max_impact_speed"),
@@ -284,6 +293,8 @@ def row(policy: str, agg: dict[str, Any]) -> list[str]:
         policy,
         str(agg["episodes"]),
         f"{agg['collision_rate']:.3f} [{lo:.3f}, {hi:.3f}]",
+        f"{agg['pedestrian_at_fault_collision_rate']:.3f}",
+        f"{agg['vehicle_at_fault_collision_rate']:.3f}",
         f"{fmt(agg['min_separation_min'])}{mark}/{fmt(agg['min_separation_p50'])}",
         f"{fmt(agg['min_ttc_p5'])}/{fmt(agg['min_ttc_p50'])}{mark}",
         fmt(agg["pet_pedestrian_first_p5"]),
