@@ -74,6 +74,7 @@ CSV_EPISODE_FIELDS = (
     "yield_obligations",
     "yield_compliant",
     "yield_violations",
+    "yield_unresolved",
     "passed_crossing",
     "delay",
     "time_to_pass",

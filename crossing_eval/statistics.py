@@ -79,8 +79,9 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
     _max and drac_following_max; hard_brakes_per_episode (events), comfort_violations_per_episode (steps),
     max_deceleration_mean; speeding_rate (episodes with any time over the speed limit),
     max_speed_over_limit_max/_mean (the episodes' largest excess, m/s) and time_over_speed_limit_mean
-    (s per episode); yield_obligations, yield_compliance (= compliant / obligations) and
-    yield_compliance_ci95; unneeded_stops_per_episode; pass_rate, mean_delay and mean_time_to_pass
+    (s per episode); yield_obligations, yield_compliance (= compliant / obligations, obligations still
+    open at the end included) and yield_compliance_ci95, yield_unresolved (obligations open at the end);
+    unneeded_stops_per_episode; pass_rate, mean_delay and mean_time_to_pass
     (episodes that passed); mean_pedestrian_wait; mean_distance; world health, which the ego is not part of:
     background_collisions (car–pedestrian contacts), background_collisions_legal (with a legal pedestrian),
     background_collision_rate and _ci95 (episodes with one, Wilson), background_collision_max_speed.
@@ -158,6 +159,7 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
         "yield_obligations": obligations,
         "yield_compliance": compliant / obligations if obligations else math.nan,
         "yield_compliance_ci95": wilson_interval(compliant, obligations),
+        "yield_unresolved": sum(r.yield_unresolved for r in results),
         "unneeded_stops_per_episode": float(col("unneeded_stops").mean()),
         "pass_rate": float(passed.mean()),
         "mean_delay": _mean(col("delay")),

@@ -92,7 +92,15 @@ TABLE_COLUMNS: tuple[Column, ...] = (
         "yield compl. (n)",
         None,
         "Yield obligations met / obligations (zebra, or signalised crossing on pedestrian green), and the"
-        " number of obligations; '-' = none arose.",
+        " number of obligations; '-' = none arose. Obligations still open when an episode ended count in"
+        " the denominator, not as met (see unresolved).",
+    ),
+    Column(
+        "unresolved",
+        "yield_unresolved",
+        "Yield obligations still open when their episode ended (the pedestrian had not cleared the ego's"
+        " half, the ego had not entered the crossing): neither met nor broken, so they lower the"
+        " compliance (a car that stops far from the crossing and waits, or one that crashed first).",
     ),
     Column(
         "over limit m/s",
@@ -196,6 +204,7 @@ def _row(name: str, agg: dict[str, Any]) -> list[str]:
         _fmt(agg["drac_crossing_mean"]),
         _fmt(agg["hard_brakes_per_episode"]),
         f"{_fmt(comp, 3)} ({agg['yield_obligations']})",
+        str(agg["yield_unresolved"]),
         _fmt(agg["max_speed_over_limit_max"]),
         _fmt(agg["time_over_speed_limit_mean"]),
         _fmt(agg["pass_rate"]),

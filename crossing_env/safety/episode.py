@@ -77,8 +77,9 @@ class EpisodeMetrics:
       if the pedestrian leaves the kerb without crossing (state neither `WAITING` nor `CROSSING`, centre
       off the road) before entering the ego's half. Only pedestrians who intend to cross
       (`GroundTruth.intends_to_cross`) open obligations, as the law's duty is to them. Obligations
-      still open at the end count as compliant. The German "influenced" test (pedestrian forced to slow
-      down) is not applied: it would need the pedestrian's desired speed, which the ground truth does
+      still open at the end are unresolved: they count among the obligations but not as met, so
+      compliance = met / (met + violated + unresolved). The German "influenced" test (pedestrian forced
+      to slow down) is not applied: it would need the pedestrian's desired speed, which the ground truth does
       not carry.
     - Collisions: counted by kind (pedestrian, vehicle, static) and, apart, those in which the ego was at
       fault (`crossing_env.collision_fault`: nuPlan's rule, decided when the contact began).
@@ -412,7 +413,7 @@ class EpisodeMetrics:
     def result(self) -> EpisodeResult:
         """Summarise the episode so far (can be called at any time; does not reset)."""
         road = self.scenario.road
-        compliant, violations, declined = self._yield.counts()
+        compliant, violations, declined, unresolved = self._yield.counts()
         passed = not math.isnan(self._reach_time)
         delay = math.nan
         if passed:
@@ -457,7 +458,7 @@ class EpisodeMetrics:
             hard_braking_events=int(self._hard_events),
             comfort_violation_steps=int(self._comfort_steps),
             max_deceleration=self._max_decel,
-            yield_obligations=compliant + violations,
+            yield_obligations=compliant + violations + unresolved,
             yield_compliant=compliant,
             yield_violations=violations,
             yield_offers_declined=declined,
@@ -474,6 +475,7 @@ class EpisodeMetrics:
             pedestrian_collisions_at_fault=self._ped_at_fault,
             vehicle_collisions_at_fault=self._veh_at_fault,
             static_collisions=self._static_collisions,
+            yield_unresolved=unresolved,
         )
 
 

@@ -82,6 +82,7 @@ _OPTIONAL_FIELDS = frozenset(
         "pedestrian_collisions_at_fault",
         "vehicle_collisions_at_fault",
         "static_collisions",
+        "yield_unresolved",
     }
 )
 
@@ -163,7 +164,7 @@ class EpisodeResult:
     max_deceleration: float
     """Largest deceleration (positive number, SUMO maxBR); 0 if the ego never braked."""
     yield_obligations: int
-    """Pedestrians the ego had to give way to (see `EpisodeMetrics`)."""
+    """Pedestrians the ego had to give way to (see `EpisodeMetrics`): compliant + violations + unresolved."""
     yield_compliant: int
     """Obligations met: the ego did not enter the conflict area before the pedestrian cleared its half."""
     yield_violations: int
@@ -197,10 +198,13 @@ class EpisodeResult:
     static_collisions: int = 0
     """Ego contacts with static bodies (always at fault, unless the ego stood still); 0 on the built-in roads,
     where nothing static stands in the ego's lane."""
+    yield_unresolved: int = 0
+    """Obligations still open when the episode ended (the pedestrian had not cleared the ego's half and the
+    ego had not entered the conflict area): counted among the obligations, not as compliant."""
 
     @property
     def yield_compliance(self) -> float:
-        """Compliant / obligations; nan without obligations."""
+        """Compliant / obligations (unresolved ones included in the denominator); nan without obligations."""
         return self.yield_compliant / self.yield_obligations if self.yield_obligations else math.nan
 
     def as_dict(self) -> dict[str, Any]:

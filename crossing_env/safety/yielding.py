@@ -228,11 +228,21 @@ class YieldTracker:
             )
         return violated
 
-    def counts(self) -> tuple[int, int, int]:
-        """(compliant, violated, declined) obligations so far; open ones count as compliant."""
+    def counts(self) -> tuple[int, int, int, int]:
+        """(compliant, violated, declined, unresolved) obligations so far.
+
+        Declined offers are compliant (and counted apart too); an obligation still open is unresolved: it is
+        neither met nor broken, and an episode that ends with it open has not shown that the car gives way
+        (a car that stops far from the crossing and waits, or one that crashed first).
+        """
         s = self.status
-        compliant = int(np.count_nonzero((s == OPEN) | (s == COMPLIANT) | (s == DECLINED)))
-        return compliant, int(np.count_nonzero(s == VIOLATED)), int(np.count_nonzero(s == DECLINED))
+        compliant = int(np.count_nonzero((s == COMPLIANT) | (s == DECLINED)))
+        return (
+            compliant,
+            int(np.count_nonzero(s == VIOLATED)),
+            int(np.count_nonzero(s == DECLINED)),
+            int(np.count_nonzero(s == OPEN)),
+        )
 
 
 @njit(cache=True, nogil=True)
