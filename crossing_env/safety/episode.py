@@ -75,12 +75,15 @@ class EpisodeMetrics:
       (or past it, before the crossing) for `offer_timeout` while the pedestrian kept waiting (declined
       offer); it is dropped (not counted)
       if the pedestrian leaves the kerb without crossing (state neither `WAITING` nor `CROSSING`, centre
-      off the road) before entering the ego's half. Only pedestrians who intend to cross
-      (`GroundTruth.intends_to_cross`) open obligations, as the law's duty is to them. Obligations
-      still open at the end are unresolved: they count among the obligations but not as met, so
-      compliance = met / (met + violated + unresolved). The German "influenced" test (pedestrian forced
-      to slow down) is not applied: it would need the pedestrian's desired speed, which the ground truth does
-      not carry.
+      off the road) before entering the ego's half (waived). A declined or waived obligation opens
+      again when its pedestrian steps onto the crossing after all (on the zebra, in the ego's half or
+      walking towards it as above) while the ego can still stop comfortably before the crossing; the
+      declined one stays counted as met, the new one is judged by the same rules. Only pedestrians who
+      intend to cross (`GroundTruth.intends_to_cross`) open obligations, as the law's duty is to them.
+      Obligations still open at the end are unresolved: they count among the obligations but not as
+      met, so compliance = met / (met + violated + unresolved). The German "influenced" test
+      (pedestrian forced to slow down) is not applied: it would need the pedestrian's desired speed,
+      which the ground truth does not carry.
     - Collisions: counted by kind (pedestrian, vehicle, static) and, apart, those in which the ego was at
       fault (`crossing_env.collision_fault`: nuPlan's rule, decided when the contact began).
     - Delay: from t = 0 at `EgoConfig.x` until the ego centre passes `conflict_area.x_max + delay_margin`

@@ -4,7 +4,9 @@
 both call what is here, so the metric and the reward cannot drift apart. The rules are documented on
 `EpisodeMetrics`; in short, an obligation opens for a pedestrian on the zebra in (or walking towards) the
 ego's half, or waiting at the kerb, while the ego can still stop comfortably, and it is violated when the
-ego occupies the conflict area while it is open.
+ego occupies the conflict area while it is open. An obligation that closed as declined or waived opens
+again when its pedestrian steps onto the crossing after all, while the ego can still stop before the
+crossing: a car that stood briefly and then goes owes the way to whoever then steps out.
 
 Who can create an obligation is decided in one place, `obligation_candidates`.
 """
@@ -51,6 +53,8 @@ class YieldState(NamedTuple):
     """(n,) bool: entered the ego's half while the obligation was open."""
     offer_time: np.ndarray
     """(n,) float64 seconds the ego has stood offering the way."""
+    earlier_declined: np.ndarray
+    """(n,) int64 declined obligations of this pedestrian that closed before the current one reopened."""
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
@@ -63,6 +67,7 @@ EMPTY_YIELD_STATE = YieldState(
     _frozen(np.empty(0, dtype=np.int8)),
     _frozen(np.empty(0, dtype=bool)),
     _frozen(np.empty(0, dtype=np.float64)),
+    _frozen(np.empty(0, dtype=np.int64)),
 )
 """The state of every new `YieldTracker` (one shared object, so trackers that saw the same steps from the
 start hold identical states)."""
@@ -171,6 +176,7 @@ class YieldTracker:
                 np.concatenate([st.status, np.zeros(k, dtype=np.int8)])[order],
                 np.concatenate([st.entered_half, np.zeros(k, dtype=bool)])[order],
                 np.concatenate([st.offer_time, np.zeros(k)])[order],
+                np.concatenate([st.earlier_declined, np.zeros(k, dtype=np.int64)])[order],
             )
             pos = np.searchsorted(st.ids, ids)
         return pos
@@ -193,15 +199,20 @@ class YieldTracker:
         front = float(gt.ego_position[0]) + 0.5 * gt.ego_size[0]
         speed = math.hypot(float(gt.ego_velocity[0]), float(gt.ego_velocity[1]))
         dist = ca.stop_line_x - front
-        can_open = may_open and dist > speed * speed / (2.0 * cfg.yield_deceleration)
+        stopping = speed * speed / (2.0 * cfg.yield_deceleration)
+        can_open = may_open and dist > stopping
+        # A closed obligation reopens while the ego can still stop before the crossing itself (it may
+        # have stood between the stop line and the crossing while it offered the way).
+        can_reopen = may_open and ca.x_min - front > stopping
         # Declined offers: the ego stands before the crossing (at most `offer_distance` before the stop line,
         # or between the line and the crossing) while the pedestrian keeps waiting.
         offering = speed <= cfg.offer_stop_speed and front <= ca.x_min and dist <= cfg.offer_distance
         st = self.state
-        violated, status, entered, offer_time = _update_obligations(
+        violated, status, entered, offer_time, earlier = _update_obligations(
             st.status,
             st.entered_half,
             st.offer_time,
+            st.earlier_declined,
             rows,
             gt.pedestrian_positions,
             gt.pedestrian_velocities,
@@ -211,6 +222,7 @@ class YieldTracker:
             gt.waiting,
             obligation_candidates(gt),
             bool(can_open),
+            bool(can_reopen),
             bool(offering),
             bool(ego_in_ca),
             bool(cfg.far_half_counts),
@@ -224,7 +236,11 @@ class YieldTracker:
         )
         if status is not None:
             self.state = YieldState(
-                st.ids, status, entered, offer_time if offer_time is not None else st.offer_time
+                st.ids,
+                status,
+                entered,
+                offer_time if offer_time is not None else st.offer_time,
+                earlier if earlier is not None else st.earlier_declined,
             )
         return violated
 
@@ -236,13 +252,10 @@ class YieldTracker:
         (a car that stops far from the crossing and waits, or one that crashed first).
         """
         s = self.status
-        compliant = int(np.count_nonzero((s == COMPLIANT) | (s == DECLINED)))
-        return (
-            compliant,
-            int(np.count_nonzero(s == VIOLATED)),
-            int(np.count_nonzero(s == DECLINED)),
-            int(np.count_nonzero(s == OPEN)),
-        )
+        earlier = int(self.state.earlier_declined.sum())  # declined, then reopened: each one counts
+        declined = int(np.count_nonzero(s == DECLINED)) + earlier
+        compliant = int(np.count_nonzero(s == COMPLIANT)) + declined
+        return compliant, int(np.count_nonzero(s == VIOLATED)), declined, int(np.count_nonzero(s == OPEN))
 
 
 @njit(cache=True, nogil=True)
@@ -261,6 +274,7 @@ def _update_obligations(
     status_all: np.ndarray,
     entered_all: np.ndarray,
     offer_all: np.ndarray,
+    earlier_all: np.ndarray,
     rows: np.ndarray,
     positions: np.ndarray,
     velocities: np.ndarray,
@@ -270,6 +284,7 @@ def _update_obligations(
     waiting_gt: np.ndarray,
     may_owe: np.ndarray,
     can_open: bool,
+    can_reopen: bool,
     offering: bool,
     ego_in_ca: bool,
     far_half_counts: bool,
@@ -280,25 +295,31 @@ def _update_obligations(
     near_x: float,
     dt: float,
     offer_limit: float,
-) -> tuple[int, np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+) -> tuple[int, np.ndarray | None, np.ndarray | None, np.ndarray | None, np.ndarray | None]:
     """One step of the yield rules for the pedestrians at `rows` of the obligation table.
 
-    Returns (violations, status, entered_half, offer_time): new full-table arrays (the inputs are never
-    written), or None where nothing changed (offer_time: where no offer clock ran).
+    Returns (violations, status, entered_half, offer_time, earlier_declined): new full-table arrays (the
+    inputs are never written), or None where nothing changed (offer_time: where no offer clock ran or was
+    reset; earlier_declined: where nothing reopened).
     """
     n = rows.shape[0]
-    busy = False  # anything open, or anyone who could open an obligation now
+    busy = False  # anything open, or anyone who could open or reopen an obligation now
     for i in range(n):
         s = status_all[rows[i]]
         if s == OPEN or (can_open and s == 0 and (on_crossing[i] or waiting_gt[i]) and may_owe[i]):
             busy = True
             break
+        if can_reopen and (s == DECLINED or s == WAIVED) and on_crossing[i] and on_road[i] and may_owe[i]:
+            busy = True
+            break
     if not busy:
-        return 0, None, None, None
+        return 0, None, None, None, None
     status = status_all.copy()
     entered = entered_all.copy()
     offer = offer_all
     offered = False
+    earlier = earlier_all
+    reopened = False
     violated = 0
     for i in range(n):
         r = rows[i]
@@ -319,18 +340,30 @@ def _update_obligations(
                 offered = True
             offer[r] += dt
             s = DECLINED if offer[r] >= offer_limit else OPEN
+        relevant = on_crossing[i] and in_half
+        if far_half_counts and on_crossing[i] and not in_half:
+            relevant = relevant or (half_y_mid - py) * velocities[i, 1] > 0.0
         # Open new obligations while the ego can still stop comfortably before the stop line.
         if can_open and s == 0 and may_owe[i]:
-            relevant = on_crossing[i] and in_half
-            if far_half_counts and on_crossing[i] and not in_half:
-                relevant = relevant or (half_y_mid - py) * velocities[i, 1] > 0.0
             if relevant or waiting:
                 s = OPEN
                 ent = ent or in_half
+        # Reopen a declined or waived one when its pedestrian steps onto the crossing after all.
+        elif can_reopen and (s == DECLINED or s == WAIVED) and may_owe[i] and relevant and on_road[i]:
+            if not reopened:
+                earlier = earlier_all.copy()
+                reopened = True
+            if not offered:
+                offer = offer_all.copy()
+                offered = True
+            earlier[r] += s == DECLINED  # the declined obligation stays counted; a waived one never was
+            offer[r] = 0.0
+            s = OPEN
+            ent = in_half
         # Violations: the ego occupies the conflict area while an obligation is open.
         if ego_in_ca and s == OPEN:
             violated += 1
             s = VIOLATED
         status[r] = s
         entered[r] = ent
-    return violated, status, entered, offer if offered else None
+    return violated, status, entered, offer if offered else None, earlier if reopened else None

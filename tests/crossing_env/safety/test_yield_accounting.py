@@ -14,6 +14,7 @@ import numpy as np
 
 from crossing_env import ENV_ID
 from crossing_env.safety import EpisodeMetrics, EpisodeResult
+from crossing_env.safety.yielding import VIOLATED, YieldTracker
 from crossing_env.world import World
 from crossing_eval.tasks import episode_seed
 from rollout import RolloutSpec, run_spec
@@ -22,8 +23,13 @@ SEED_BASE = 31000
 """A base seed the project's tables never use (they use 2024 and 7000)."""
 
 
-def _drive(scenario: str, seed: int, controller: Callable[[World], float]) -> EpisodeResult:
-    """One episode driven by `controller(world) -> acceleration (m/s²)`, scored from the ground truth."""
+def _drive(
+    scenario: str, seed: int, controller: Callable[[World], float], tracker: YieldTracker | None = None
+) -> EpisodeResult:
+    """One episode driven by `controller(world) -> acceleration (m/s²)`, scored from the ground truth.
+
+    `tracker`, when given, follows the yield obligations too (to look at them per pedestrian).
+    """
     env = gym.make(ENV_ID, scenario=scenario)
     base = env.unwrapped
     env.reset(seed=seed)
@@ -35,6 +41,8 @@ def _drive(scenario: str, seed: int, controller: Callable[[World], float]) -> Ep
         action = acc / ego.max_acceleration if acc >= 0 else acc / ego.max_deceleration
         _, _, terminated, truncated, info = env.step(np.array([action], dtype=np.float32))
         metrics.update(info["ground_truth"])
+        if tracker is not None:
+            tracker.update(info["ground_truth"])
         done = terminated or truncated
     env.close()
     return metrics.result()
@@ -47,6 +55,26 @@ def stop_far(distance: float = 70.0) -> Callable[[World], float]:
         front = float(world.traffic.x[0] + 0.5 * world.traffic.length[0])
         speed = float(world.traffic.speed[0])
         gap = world.conflict_area.stop_line_x - distance - front
+        target = math.sqrt(2.0 * 2.5 * gap) if gap > 0.0 else 0.0
+        return float(np.clip(2.0 * (target - speed), -8.0, 3.0))
+
+    return controller
+
+
+def stop_then_go(wait: float = 3.5) -> Callable[[World], float]:
+    """Stop with the front 1 m before the stop line, stand `wait` s (long enough for a waiting pedestrian's
+    obligation to close as declined), then drive off at full acceleration whatever happens."""
+    stood = [0.0]
+
+    def controller(world: World) -> float:
+        if stood[0] >= wait:
+            return 3.0
+        front = float(world.traffic.x[0] + 0.5 * world.traffic.length[0])
+        speed = float(world.traffic.speed[0])
+        gap = world.conflict_area.stop_line_x - 1.0 - front
+        if speed < 0.05 and gap < 1.0:
+            stood[0] += world.dt
+            return 0.0
         target = math.sqrt(2.0 * 2.5 * gap) if gap > 0.0 else 0.0
         return float(np.clip(2.0 * (target - speed), -8.0, 3.0))
 
@@ -92,3 +120,20 @@ def test_a_crash_before_the_crossing_leaves_its_obligations_unresolved() -> None
             unresolved += m["yield_unresolved"]
             assert m["yield_compliant"] < m["yield_obligations"] or m["yield_obligations"] == 0
     assert unresolved > 0
+
+
+def test_stop_briefly_then_go_into_a_reopened_obligation_is_a_violation() -> None:
+    """A pedestrian declined the car's offer, then stepped onto the zebra as it pulled away: a violation.
+
+    Found by running `stop_then_go` over 28 seeds of each zebra scenario at base 31000 (two such episodes
+    in busy_zebra); before obligations reopened, this one recorded nothing against the car."""
+    tracker = YieldTracker("zebra", 0.1)
+    result = _drive("busy_zebra", episode_seed(SEED_BASE, "busy_zebra", 21), stop_then_go(), tracker)
+    state = tracker.state
+    reopened_then_broken = (state.status == VIOLATED) & (state.earlier_declined > 0)
+    assert np.count_nonzero(reopened_then_broken) >= 1
+    assert result.yield_violations >= np.count_nonzero(reopened_then_broken)
+    assert result.yield_offers_declined >= np.count_nonzero(reopened_then_broken)
+    assert (
+        result.yield_obligations == result.yield_compliant + result.yield_violations + result.yield_unresolved
+    )

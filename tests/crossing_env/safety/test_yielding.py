@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from crossing_env.safety import MetricsConfig
+from crossing_env.safety.yielding import YieldTracker
 from crossing_env.types import PedState
 from tests.crossing_env.safety.snapshots import Ped, _ego_through, make_gt, metrics
 
@@ -119,3 +120,91 @@ def test_compliance_counts_only_pedestrians_who_intend_to_cross() -> None:
     _drive_through(m, [_waiter(False)], [_waiter(False)])  # a bystander: no duty, no violation
     r = m.result()
     assert (r.yield_obligations, r.yield_violations) == (0, 0)
+
+
+def _declined_offer(m, waiter: Ped, ego_x: float = 111.75) -> float:
+    """The ego stands (front 1 m before the stop line) for 3.1 s while `waiter` waits: declined. Returns t."""
+    m.update(make_gt(0.1, ego_x=50.0, ego_v=10.0, peds=[waiter]))  # the obligation opens on the approach
+    t = 0.1
+    for _ in range(31):
+        t = round(t + 0.1, 9)
+        m.update(make_gt(t, ego_x=ego_x, ego_v=0.0, peds=[waiter]))
+    assert m.result().yield_offers_declined == 1
+    return t
+
+
+def test_a_declined_obligation_reopens_when_the_pedestrian_steps_on_after_all() -> None:
+    """Stop briefly, then go: the pedestrian who declined steps onto the zebra as the car pulls away."""
+    m = metrics()
+    tracker_violations = []
+    t = _declined_offer(m, Ped(1, (120.0, -0.5), state=PedState.WAITING))
+    # The car starts (front 114.25, 1 m/s: it can stop within 0.17 m, 3.75 m before the crossing) as she
+    # steps onto the zebra in its half: she is owed the way again.
+    m.update(make_gt(t + 0.1, ego_x=112.0, ego_v=1.0, peds=[Ped(1, (120.0, 0.4), (0, 1.3))]))
+    assert m.result().yield_unresolved == 1
+    # It drives on into the conflict area while she is in its half: a violation.
+    m.update(make_gt(t + 0.2, ego_x=116.5, ego_v=3.0, peds=[Ped(1, (120.0, 0.6), (0, 1.3))]))
+    tracker_violations.append(m.result().yield_violations)
+    r = m.result()
+    assert (r.yield_obligations, r.yield_compliant, r.yield_violations, r.yield_offers_declined) == (
+        2,
+        1,
+        1,
+        1,
+    )
+    assert r.yield_unresolved == 0 and r.yield_compliance == 0.5
+
+
+def test_a_reopened_obligation_met_counts_as_met() -> None:
+    m = metrics()
+    t = _declined_offer(m, Ped(1, (120.0, -0.5), state=PedState.WAITING))
+    # She steps on; the car waits for her to clear its half, then goes.
+    m.update(make_gt(t + 0.1, ego_x=111.75, ego_v=0.0, peds=[Ped(1, (120.0, 0.4), (0, 1.3))]))
+    m.update(make_gt(t + 3.0, ego_x=111.75, ego_v=0.0, peds=[Ped(1, (120.0, 4.2), (0, 1.3))]))
+    m.update(make_gt(t + 4.0, ego_x=118.0, ego_v=5.0, peds=[Ped(1, (120.0, 5.5), (0, 1.3))]))
+    r = m.result()
+    assert (r.yield_obligations, r.yield_compliant, r.yield_violations, r.yield_offers_declined) == (
+        2,
+        2,
+        0,
+        1,
+    )
+
+
+def test_a_waived_obligation_reopens_and_counts_once() -> None:
+    """She walked off along the sidewalk (waived, not counted), came back and stepped onto the zebra."""
+    m = metrics()
+    _ego_through(m, 0.1, 50.0, [Ped(1, (120.0, -0.5), state=PedState.WAITING)])  # opens
+    _ego_through(m, 0.5, 54.0, [Ped(1, (123.0, -1.0), (1.3, 0), state=PedState.LEAVING)])  # waived
+    assert m.result().yield_obligations == 0
+    _ego_through(m, 1.0, 60.0, [Ped(1, (120.0, 0.5), (0, 1.3))])  # back, and onto the zebra
+    _ego_through(m, 1.5, 118.0, [Ped(1, (120.0, 1.2), (0, 1.3))])  # the car drives into her path
+    r = m.result()
+    assert (r.yield_obligations, r.yield_compliant, r.yield_violations) == (1, 0, 1)
+
+
+def test_no_reopening_when_the_car_can_no_longer_stop_before_the_crossing() -> None:
+    m = metrics()
+    t = _declined_offer(m, Ped(1, (120.0, -0.5), state=PedState.WAITING))
+    # Front at 117.25 at 6 m/s: 0.75 m to the crossing, 6 m needed to stop: too late to be owed anything.
+    m.update(make_gt(t + 1.0, ego_x=115.0, ego_v=6.0, peds=[Ped(1, (120.0, 0.4), (0, 1.3))]))
+    r = m.result()
+    assert (r.yield_obligations, r.yield_violations, r.yield_unresolved) == (1, 0, 0)
+
+
+def test_the_reward_counts_the_reopened_violation_as_the_metric_does() -> None:
+    """`YieldTracker.update` is the reward's failing_to_yield and the metric's count: one piece of code."""
+    tracker = YieldTracker("zebra", 0.1)
+    per_step = []
+    waiter = Ped(1, (120.0, -0.5), state=PedState.WAITING)
+    per_step.append(tracker.update(make_gt(0.1, ego_x=50.0, ego_v=10.0, peds=[waiter])))
+    for k in range(31):
+        per_step.append(tracker.update(make_gt(0.2 + 0.1 * k, ego_x=111.75, ego_v=0.0, peds=[waiter])))
+    per_step.append(
+        tracker.update(make_gt(3.4, ego_x=112.0, ego_v=1.0, peds=[Ped(1, (120.0, 0.4), (0, 1.3))]))
+    )
+    per_step.append(
+        tracker.update(make_gt(3.5, ego_x=116.5, ego_v=3.0, peds=[Ped(1, (120.0, 0.6), (0, 1.3))]))
+    )
+    assert per_step[-1] == 1 and sum(per_step) == 1
+    assert tracker.counts() == (1, 1, 1, 0)
