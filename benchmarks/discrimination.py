@@ -6,7 +6,10 @@ same seeds, wrappers and metrics as the table), and reports per scenario and pol
 
 - distinct outcomes: different (time to pass to 0.1 s, collision, min-TTC to 0.1 s, yield violations)
   tuples among the seeds (a scenario whose seeds all give the same episode measures one episode);
-- collision rate, violation rate (episodes with a failed yield obligation) and their union;
+- pedestrian risk: the pedestrian collision rate, the violation rate (episodes with a failed yield
+  obligation) and their union; collisions with vehicles (rear-end crashes into cars that stopped for
+  pedestrians, at `busy_zebra`) are counted apart, with those the ego caused (`crossing_env.collision_fault`),
+  and are not pedestrian risk;
 - pass rate and the censored time to pass (an episode that never passes counts at the scenario's duration);
 - the 5th percentile of the episodes' minimum TTC to a pedestrian.
 
@@ -72,6 +75,9 @@ def cell(records: list[EpisodeRecord], duration: float) -> dict[str, Any]:
     """The report's figures for one (scenario, policy)."""
     res = [r.result for r in records]
     collided = np.array([r["collision"] for r in res], dtype=bool)
+    hit_pedestrian = np.array([r["pedestrian_collisions"] > 0 for r in res], dtype=bool)
+    hit_vehicle = np.array([r["vehicle_collisions"] > 0 for r in res], dtype=bool)
+    vehicle_fault = np.array([r["vehicle_collisions_at_fault"] > 0 for r in res], dtype=bool)
     violated = np.array([r["yield_violations"] > 0 for r in res], dtype=bool)
     passed = np.array([r["passed_crossing"] for r in res], dtype=bool)
     ttp = np.array([_num(r["time_to_pass"], float("nan")) for r in res], dtype=np.float64)
@@ -81,8 +87,11 @@ def cell(records: list[EpisodeRecord], duration: float) -> dict[str, Any]:
         "episodes": len(res),
         "distinct_outcomes": len({outcome(r) for r in res}),
         "collision_rate": float(collided.mean()),
+        "pedestrian_collision_rate": float(hit_pedestrian.mean()),
+        "vehicle_collision_rate": float(hit_vehicle.mean()),
+        "vehicle_at_fault_collision_rate": float(vehicle_fault.mean()),
         "violation_rate": float(violated.mean()),
-        "collision_or_violation_rate": float((collided | violated).mean()),
+        "pedestrian_risk_rate": float((hit_pedestrian | violated).mean()),
         "pass_rate": censored["pass_rate"],
         "censored_time_to_pass": censored["censored_mean_delay"],
         "min_ttc_p5": _json_float(float(np.percentile(ttc, 5))),
@@ -118,10 +127,13 @@ def check_targets(data: dict[str, Any]) -> list[str]:
     n = data["seeds"]
     for sc, pols in data["scenarios"].items():
         careless, careful, cautious = pols["constant_speed"], pols["yielding"], pols["always_cautious"]
-        if sc not in UNTARGETED and careless["collision_or_violation_rate"] < 0.5:
+        risk = careless.get("pedestrian_risk_rate")  # absent from a JSON measured before it existed
+        if sc not in UNTARGETED and risk is None:
+            misses.append(f"{sc}: pedestrian risk not measured (regenerate the report)")
+        elif sc not in UNTARGETED and risk < 0.5:
             misses.append(
-                f"{sc}: constant_speed collides or fails to yield in"
-                f" {careless['collision_or_violation_rate']:.0%} of episodes (target >= 50 %)"
+                f"{sc}: constant_speed hits a pedestrian or fails to yield in"
+                f" {careless['pedestrian_risk_rate']:.0%} of episodes (target >= 50 %)"
             )
         if careful["collision_rate"] > 0:
             misses.append(f"{sc}: yielding collides in {careful['collision_rate']:.0%} of episodes (want 0)")
@@ -161,28 +173,33 @@ def render_body(data: dict[str, Any]) -> str:
         f"Measured on commit `{data['commit']}` with `{data['command'].strip()}`: {data['seeds']} seeds per"
         f" scenario (base seed {data['base_seed']}), {data['wall_seconds']:.0f} s on {data['workers']}"
         " worker(s). A scenario tells careless from careful driving when the car that never brakes"
-        " (`constant_speed`) collides or fails to yield and `yielding` does not; its seeds differ when"
+        " (`constant_speed`) puts pedestrians at risk (hits one or fails to yield) and `yielding` does not;"
+        " collisions with vehicles are shown apart (all, and those the ego caused: nuPlan's at-fault rule,"
+        " docs/results.md) and are not pedestrian risk; its seeds differ when"
         " `yielding` meets many distinct outcomes (time to pass to 0.1 s, collision, min-TTC to 0.1 s,"
         " violations). Time to pass is censored: an episode that never passes counts at the duration.",
         "",
-        "| scenario | policy | distinct | collision | violation | either | pass rate | time to pass (s)"
-        " | min-TTC p5 (s) |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| scenario | policy | distinct | ped. collision | violation | ped. risk | veh. collision"
+        " (at fault) | pass rate | time to pass (s) | min-TTC p5 (s) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for sc, pols in data["scenarios"].items():
         for pol, c in pols.items():
             lines.append(
-                f"| {sc} | {pol} | {c['distinct_outcomes']}/{c['episodes']} | {_fmt(c['collision_rate'])}"
-                f" | {_fmt(c['violation_rate'])} | {_fmt(c['collision_or_violation_rate'])}"
-                f" | {_fmt(c['pass_rate'])} | {_fmt(c['censored_time_to_pass'], 1)}"
+                f"| {sc} | {pol} | {c['distinct_outcomes']}/{c['episodes']}"
+                f" | {_fmt(c.get('pedestrian_collision_rate'))} | {_fmt(c['violation_rate'])}"
+                f" | {_fmt(c.get('pedestrian_risk_rate'))} | {_fmt(c.get('vehicle_collision_rate'))}"
+                f" ({_fmt(c.get('vehicle_at_fault_collision_rate'))}) | {_fmt(c['pass_rate'])}"
+                f" | {_fmt(c['censored_time_to_pass'], 1)}"
                 f" | {_fmt(c['min_ttc_p5'])} |"
             )
     misses = check_targets(data)
     lines += ["", "## Targets", ""]
     lines.append(
-        "Per scenario: `constant_speed` collides or fails to yield in >= 50 % of episodes (scenarios built"
-        " around a conflict); `yielding` never collides, has >= 35 distinct outcomes in 45 seeds and passes"
-        " in >= 80 % of episodes (`busy_zebra`: 20-80 %); `always_cautious` is slower than `yielding`."
+        "Per scenario: `constant_speed` hits a pedestrian or fails to yield in >= 50 % of episodes"
+        " (scenarios built around a conflict); `yielding` never collides with anything, has >= 35 distinct"
+        " outcomes in 45 seeds and passes in >= 80 % of episodes (`busy_zebra`: 20-80 %); `always_cautious`"
+        " is slower than `yielding`."
     )
     lines.append("")
     lines += [f"- missed: {m}" for m in misses] if misses else ["All targets met."]

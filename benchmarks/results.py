@@ -527,6 +527,15 @@ ENTRIES: dict[str, Entry] = {
             fingerprint=default_run_fingerprint,
         ),
         Entry(
+            "default_table_summary",
+            "slow",
+            _measure_default_table,
+            _render_default_table,
+            REPO / "README.md",
+            fingerprint=default_run_fingerprint,
+            data="default_table",
+        ),
+        Entry(
             "discrimination",
             "slow",
             _measure_discrimination,
