@@ -193,6 +193,19 @@ def render_body(data: dict[str, Any]) -> str:
                 f" | {_fmt(c['censored_time_to_pass'], 1)}"
                 f" | {_fmt(c['min_ttc_p5'])} |"
             )
+    crashes = [
+        f"{sc} / {pol}: {_fmt(c['vehicle_collision_rate'])} of episodes"
+        f" ({_fmt(c['vehicle_at_fault_collision_rate'])} at fault)"
+        for sc, pols in data["scenarios"].items()
+        for pol, c in pols.items()
+        if c.get("vehicle_collision_rate")
+    ]
+    lines += [
+        "",
+        "Collisions with vehicles, which are not pedestrian risk (a car that crashes into the car ahead"
+        " before the crossing never gets to endanger the people on it; its obligations to them stay"
+        " unresolved): " + ("; ".join(crashes) if crashes else "none") + ".",
+    ]
     misses = check_targets(data)
     lines += ["", "## Targets", ""]
     lines.append(

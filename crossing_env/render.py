@@ -304,7 +304,8 @@ class TopDownRenderer:
         ev = self._collisions[0]
         more = f" (+{len(self._collisions) - 1})" if len(self._collisions) > 1 else ""
         text = self.font.render(
-            f"COLLISION with a {ev.kind} at t {ev.time:.1f} s, {ev.relative_speed:.1f} m/s{more}",
+            f"COLLISION with a {ev.kind} at t {ev.time:.1f} s, {ev.relative_speed:.1f} m/s,"
+            f" {'ego at fault' if ev.at_fault else 'ego not at fault'}{more}",
             True,
             (255, 255, 255),
         )

@@ -279,7 +279,8 @@ class EpisodeRecorder:
             self.rec.log(
                 "events/collisions",
                 rr.TextLog(
-                    f"t={c.time:.1f}s collision with {c.kind} {c.other_id} at {c.relative_speed:.1f} m/s "
+                    f"t={c.time:.1f}s collision with {c.kind} {c.other_id} at {c.relative_speed:.1f} m/s"
+                    f" ({'ego at fault' if c.at_fault else 'ego not at fault'}, {c.contact_type}) "
                     f"({'compliant' if c.compliant else 'non-compliant'} road user)",
                     level="ERROR",
                 ),

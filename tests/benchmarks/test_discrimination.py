@@ -41,3 +41,10 @@ def test_pedestrian_hits_are_pedestrian_risk_and_targets_read_them() -> None:
         {**data, "commit": "x", "command": "c", "base_seed": 9000, "wall_seconds": 1.0, "workers": 1}
     )
     assert "| ped. collision | violation | ped. risk | veh. collision (at fault) |" in page
+    assert "not pedestrian risk" in page and "ncap_cpfa / constant_speed" not in page  # it hit no vehicle
+    crashed = dict(rear_ender, vehicle_collision_rate=0.5, vehicle_at_fault_collision_rate=0.5)
+    data["scenarios"]["ncap_cpfa"]["constant_speed"] = crashed
+    page = render_body(
+        {**data, "commit": "x", "command": "c", "base_seed": 9000, "wall_seconds": 1.0, "workers": 1}
+    )
+    assert "ncap_cpfa / constant_speed: 0.50 of episodes (0.50 at fault)" in page
