@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from crossing_env.pedestrians.transitions import KERB_STANDOFF
+from crossing_env.pedestrians.transitions import CROSSING, KERB_STANDOFF
 from crossing_env.road import RoadGeometry
 from scenarios.config import ConflictConfig, PedestrianSpawn, ScenarioConfig
 
@@ -78,8 +78,9 @@ def draw_plan(scenario: ScenarioConfig, geometry: RoadGeometry, rng: np.random.G
     radius = c.radius if c.radius is not None else scenario.pedestrians.radius
     width = scenario.traffic.width
     impact_y = float(geometry.lane_y[scenario.ego.lane]) - width / 2 + offset * width
-    # Walking from a standstill, the social force lags the pedestrian by about one relaxation time.
-    lag = scenario.pedestrians.social_force.relaxation_time
+    # Walking from a standstill, the social force lags the pedestrian by about one relaxation time; a
+    # dummy moves at its speed from the first step.
+    lag = 0.0 if c.dummy else scenario.pedestrians.social_force.relaxation_time
     south, north = geometry.walkway_bounds
     if side == "near":  # walks north, from the south sidewalk (or the parking strip in front of it)
         lo, hi = south + radius + WALL_CLEARANCE, geometry.kerb_south - KERB_STANDOFF
@@ -164,3 +165,19 @@ class ConflictScript:
         if release:
             self.stepped_off_at = round(time, 9)
             pedestrians.release_held(self.slot, red, time)
+
+    def hold_course(self, pedestrians: PedestrianPopulation) -> None:
+        """A dummy's velocity: still until released, then straight along its line at its speed.
+
+        Called after `PedestrianPopulation.step` (which set everyone's velocity from the social force) and
+        before the physics moves the bodies: the dummy reacts to nothing until a contact pushes it.
+        """
+        i = self.slot
+        if not self.config.dummy or i is None:
+            return
+        if self.stepped_off_at is None:
+            pedestrians.velocity[i] = 0.0
+        elif pedestrians.state[i] == CROSSING:
+            towards = 1.0 if self.plan.side == "near" else -1.0  # near: walks north (+y), far: south
+            pedestrians.velocity[i, 0] = 0.0
+            pedestrians.velocity[i, 1] = towards * self.plan.pedestrian_speed

@@ -55,6 +55,9 @@ class CollisionEvent:
     contact_type: str = ""
     """The ego collision's class in nuPlan's terms (`crossing_env.collision_fault.CONTACT_TYPES`); "" for
     background contacts."""
+    car_speed: float = 0.0
+    """Speed (m/s) of the car in the contact when it began: the ego's for an ego collision (the impact speed
+    as Euro NCAP measures it), the background car's for a background contact."""
     at_fault: bool = False
     """The ego is at fault (nuPlan's rule, `crossing_env.collision_fault`): it hit with its front while both
     moved, or hit a stopped body; never for background contacts."""

@@ -107,6 +107,8 @@ class World:
             ego = (float(tr.x[0]), float(tr.speed[0]), float(tr.length[0]))
             self.conflict.step(self.time, ego, green is False, peds)
         peds.step(self.time, self._car_snapshot(), green)
+        if self.conflict is not None:
+            self.conflict.hold_course(peds)
         # Background drivers: obstacles are pedestrians on the road, at the kerb, or on the zebra
         # (positions have not moved since the masks were refreshed at the end of the last step).
         if self.scenario.crossing.kind == "zebra":
@@ -195,6 +197,7 @@ class World:
                 relative_speed=c.relative_speed,
                 compliant=bool(self.ped_legal[c.pedestrian_slot]),
                 contact_type=fault,
+                car_speed=c.car_speed,
                 at_fault=fault in AT_FAULT_TYPES,
             )
             (self.collisions if ego else self.background_collisions).append(event)
@@ -230,6 +233,7 @@ class World:
                     relative_speed=float(rel),
                     compliant=True,
                     contact_type=fault,
+                    car_speed=float(abs(tr.speed[0])),
                     at_fault=fault in AT_FAULT_TYPES,
                 )
             )

@@ -4,7 +4,8 @@ Euro NCAP's AEB pedestrian tests (CPNA, CPFA, CPNC) sweep the car's speed and sc
 whether the car avoided the dummy and, if not, how fast it hit it. The `ncap_*` scenarios draw the ego's
 speed per seed from 20-60 km/h, so here episodes are binned by the ego's speed after reset (10 km/h bins)
 and each bin reports the share of episodes without a pedestrian contact and the mean impact speed of
-those with one (the real pymunk contact's relative speed). Written into ``report.md``.
+those with one (the ego's speed when the contact began, as Euro NCAP measures it; the key pedestrian is a
+dummy that reacts to nothing, `ConflictConfig.dummy`). Written into ``report.md``.
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ def ncap_markdown(records: Sequence[EpisodeRecord]) -> str:
         "## NCAP-style scoring (ncap_* scenarios)",
         "",
         "Episodes binned by the car's speed after reset; avoided = no contact with a pedestrian; impact speed"
-        " = mean relative speed at contact of the episodes with one ('-' = none).",
+        " = mean of the car's speed at contact over the episodes with one ('-' = none).",
         "",
         "| scenario | policy | car speed km/h | episodes | avoided | impact speed km/h |",
         "|---|---|---|---|---|---|",

@@ -322,6 +322,10 @@ class ConflictConfig:
     """The pedestrian looks at a phone (walks 20 % slower than drawn, as distracted pedestrians do)."""
     radius: float | None = None
     """Body radius (m; a child about 0.2); None uses the population radius."""
+    dummy: bool = False
+    """The key pedestrian is a test dummy, as on a Euro NCAP track: it stands still until released, then
+    moves along its crossing line at the drawn speed from the first step and reacts to nothing (no social
+    force from cars or people, no detour). False: it walks by social force like everyone else."""
 
 
 @dataclass(frozen=True)

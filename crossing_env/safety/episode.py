@@ -243,8 +243,8 @@ class EpisodeMetrics:
                 self._ped_collisions += 1
                 self._ped_at_fault += bool(ev.at_fault)
                 self._compliant_collisions += bool(ev.compliant)
-                if not ev.relative_speed <= self._max_impact:  # also replaces the initial nan
-                    self._max_impact = float(ev.relative_speed)
+                if not ev.car_speed <= self._max_impact:  # also replaces the initial nan
+                    self._max_impact = float(ev.car_speed)
             elif ev.kind == "static":
                 self._static_collisions += 1
             else:

@@ -120,7 +120,8 @@ class EpisodeResult:
     noncompliant_pedestrian_collisions: int
     """Contacts with jaywalking / red-light pedestrians."""
     max_impact_speed: float
-    """Largest ego–pedestrian impact speed; nan without pedestrian collision."""
+    """Largest impact speed of an ego–pedestrian collision: the ego's speed when the contact began (as Euro
+    NCAP measures it; injury risk follows the car's speed); nan without pedestrian collision."""
     background_collisions: int
     """Contacts between background cars and pedestrians (world health: the ego is not involved)."""
     background_collision_max_speed: float

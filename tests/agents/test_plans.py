@@ -15,6 +15,8 @@ from agents.predictive import PredictiveYielding
 from agents.view import View, braking_travel_time, parse_observation
 from predictors.oracle import PLAN_ACCELERATIONS_KEY, PLAN_PATHS_KEY, OracleTrajectory
 from rollout.build import RolloutSpec, build, run_spec
+from scenarios import load_scenario
+from scenarios.config import ScenarioConfig
 
 
 def test_oracle_futures_differ_between_go_and_slow_plans() -> None:
@@ -203,10 +205,18 @@ def test_a_plan_that_passes_her_first_is_not_charged_and_the_worst_deferral_coun
     assert after[0, 2] == pytest.approx(before[0, 2] + worst)
 
 
+def _reacting_cpna() -> ScenarioConfig:
+    """ncap_cpna with the key pedestrian walking by social force (the value study's episodes were measured
+    before it became a test dummy; the plans' reaction to someone who waits for the car is what is tested)."""
+    scenario = load_scenario("ncap_cpna")
+    assert scenario.conflict is not None
+    return dataclasses.replace(scenario, conflict=dataclasses.replace(scenario.conflict, dummy=False))
+
+
 def _episode(seed: int, **overrides: object) -> dict:
-    """The result of an ncap_cpna episode of `predictive_yielding` under the path oracle."""
+    """The result of a (reacting) ncap_cpna episode of `predictive_yielding` under the path oracle."""
     spec = RolloutSpec(
-        scenario="ncap_cpna",
+        scenario=_reacting_cpna(),
         policy="predictive_yielding",
         intention="none",
         predictor="oracle",
@@ -223,7 +233,9 @@ def test_the_path_oracle_car_no_longer_creeps_up_to_an_ncap_pedestrian() -> None
     # The value study's ncap_cpna episode where the plans made the car creep (measured: time to pass 16.0 s
     # without the deferral charge, 5.4 s for the rules alone); with it, about the rules' time.
     seed = 3070750771
-    rules = float(run_spec(RolloutSpec(scenario="ncap_cpna", policy="yielding"), seed).result["time_to_pass"])
+    rules = float(
+        run_spec(RolloutSpec(scenario=_reacting_cpna(), policy="yielding"), seed).result["time_to_pass"]
+    )
     creeping = _time_to_pass(seed, plan_deferral=False, plan_deferred_wait=False)
     charged = _time_to_pass(seed)
     assert creeping > rules + 5.0

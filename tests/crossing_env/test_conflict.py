@@ -177,3 +177,67 @@ def test_busy_zebra_is_not_blocked_by_a_background_car_for_the_whole_episode() -
                 else:
                     standing.pop(vid, None)
         assert longest < 0.5 * scenario.duration, f"seed {seed}: a car stood {longest:.1f} s at the line"
+
+
+NCAP = ("ncap_cpna", "ncap_cpfa", "ncap_cpnc")
+
+
+@pytest.mark.parametrize("name", NCAP)
+def test_the_ncap_pedestrian_is_a_dummy_that_reacts_to_nothing(name: str) -> None:
+    """Euro NCAP's dummy: straight along its line at its speed, however close the car comes."""
+    scenario = load_scenario(name)
+    assert scenario.conflict is not None and scenario.conflict.dummy
+    for seed in range(4):
+        world = World(scenario, np.random.default_rng(9000 + seed))
+        plan, slot = world.conflict.plan, world.conflict.slot
+        towards = 1.0 if plan.side == "near" else -1.0
+        start_x = float(world.pedestrians.position[slot, 0])
+        hits = []
+        for _ in range(250):
+            before = world.pedestrians.position[slot].copy()
+            world.step(0.0)
+            hits = [c for c in world.collisions if c.kind == "pedestrian"]
+            if world.conflict.stepped_off_at is None:  # it stands where it was placed
+                assert np.array_equal(world.pedestrians.position[slot], before)
+            elif not hits:
+                # every step before the contact: the drawn speed along its line, not a millimetre aside
+                moved = world.pedestrians.position[slot] - before
+                assert moved[0] == pytest.approx(0.0, abs=1e-9)
+                assert moved[1] == pytest.approx(towards * plan.pedestrian_speed * world.dt, rel=1e-6)
+                assert float(world.pedestrians.position[slot, 0]) == pytest.approx(start_x, abs=1e-9)
+            if hits:
+                break
+        assert hits, f"{name} seed {seed}: the car that holds its speed missed the dummy"
+        (hit,) = hits
+        # The impact speed is the car's speed at contact (Euro NCAP); the car held its drawn speed.
+        assert hit.car_speed == pytest.approx(plan.ego_speed, rel=1e-9)
+        # The dummy was not pushed along before the contact: the contact's relative speed is the car's
+        # speed and the dummy's crossing speed at right angles (within 3 %; a reacting pedestrian read
+        # 0.80-1.00 x the car's speed).
+        assert hit.relative_speed == pytest.approx(np.hypot(plan.ego_speed, plan.pedestrian_speed), rel=0.03)
+
+
+def test_a_pedestrian_that_is_not_a_dummy_still_reacts_to_the_car() -> None:
+    """midblock_jaywalker's key pedestrian walks by social force: the car's repulsion bends its velocity."""
+    scenario = load_scenario("midblock_jaywalker")
+    assert scenario.conflict is not None and not scenario.conflict.dummy
+    world = World(scenario, np.random.default_rng(0))
+    slot = world.conflict.slot
+    speeds = []
+    for _ in range(250):
+        world.step(0.0)
+        if world.conflict.stepped_off_at is not None:
+            speeds.append(float(np.hypot(*world.pedestrians.velocity[slot])))
+        if world.collisions:
+            break
+    assert len(set(np.round(speeds, 6))) > 3  # accelerates from standstill and is pushed: never one speed
+
+
+def test_the_impact_speed_of_an_episode_is_the_cars_speed_at_contact() -> None:
+    from crossing_eval.tasks import episode_seed
+    from rollout import RolloutSpec, run_spec
+
+    for name in NCAP:
+        episode = run_spec(RolloutSpec(scenario=name, policy="constant_speed"), episode_seed(9000, name, 0))
+        assert episode.result["pedestrian_collisions"] == 1
+        assert episode.result["max_impact_speed"] == pytest.approx(episode.initial_speed, rel=1e-9)

@@ -64,15 +64,15 @@ def test_episode_braking_counts() -> None:
 def test_episode_collisions() -> None:
     m = metrics()
     hit = [
-        CollisionEvent(0.1, "pedestrian", 3, (50.0, 1.0), 5.0, True),
-        CollisionEvent(0.1, "pedestrian", 4, (50.0, 1.5), 7.5, False),
-        CollisionEvent(0.1, "vehicle", 9, (52.0, 1.5), 2.0, True),
+        CollisionEvent(0.1, "pedestrian", 3, (50.0, 1.0), 5.0, True, car_speed=4.8),
+        CollisionEvent(0.1, "pedestrian", 4, (50.0, 1.5), 7.5, False, car_speed=7.4),
+        CollisionEvent(0.1, "vehicle", 9, (52.0, 1.5), 2.0, True, car_speed=9.0),
     ]
     m.update(make_gt(0.1, collisions=hit))
     r = m.result()
     assert r.collision and r.pedestrian_collisions == 2 and r.vehicle_collisions == 1
     assert r.compliant_pedestrian_collisions == 1 and r.noncompliant_pedestrian_collisions == 1
-    assert r.max_impact_speed == pytest.approx(7.5)
+    assert r.max_impact_speed == pytest.approx(7.4)  # the car's speed at contact, pedestrian contacts only
     assert math.isnan(metrics().result().max_impact_speed)
 
 
