@@ -64,6 +64,26 @@ class CollisionEvent:
 
 
 @dataclass(frozen=True)
+class ConflictTruth:
+    """A timed conflict's key pedestrian as the metrics need it (`GroundTruth.extras["conflict"]`)."""
+
+    pedestrian_id: int
+    """Its id."""
+    dummy: bool
+    """It is a test dummy (`ConflictConfig.dummy`): it moves on a fixed path at a fixed speed."""
+    released_at: float
+    """World time at which it stepped off; nan while it stands (never released: the test never ran)."""
+    x: float
+    """Its crossing line along the road (m)."""
+    start_y: float
+    """Where it stood before stepping off (y, m)."""
+    speed: float
+    """Its walking speed (m/s)."""
+    radius: float
+    """Its body radius (m)."""
+
+
+@dataclass(frozen=True)
 class BehaviourEvent:
     """An irrational or notable act of a pedestrian (distraction, run, hesitation, ...)."""
 

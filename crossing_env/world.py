@@ -26,7 +26,7 @@ from crossing_env.pedestrians.transitions import WAITING
 from crossing_env.physics import PhysicsWorld
 from crossing_env.road import RoadGeometry
 from crossing_env.traffic import Traffic
-from crossing_env.types import CollisionEvent, FloatArray, GroundTruth
+from crossing_env.types import CollisionEvent, ConflictTruth, FloatArray, GroundTruth
 from scenarios.config import EnvConfig, ScenarioConfig
 
 
@@ -254,6 +254,25 @@ class World:
             bg, tr.x, tr.y, tr.speed, tr.direction, tr.length, tr.width
         )
         states = peds.state[act]
+        extras = {
+            "phase": peds.phase[act],
+            "distracted": peds.distracted[act],
+            "jaywalker": peds.jaywalker[act],
+            "desired_speed": peds.base_speed[act],
+            "background_collisions": tuple(self.background_collisions),
+        }
+        conflict = self.conflict
+        if conflict is not None and conflict.slot is not None:
+            plan = conflict.plan
+            extras["conflict"] = ConflictTruth(
+                pedestrian_id=int(peds.ids[conflict.slot]),
+                dummy=bool(conflict.config.dummy),
+                released_at=math.nan if conflict.stepped_off_at is None else conflict.stepped_off_at,
+                x=plan.x,
+                start_y=plan.start_y,
+                speed=plan.pedestrian_speed,
+                radius=plan.radius,
+            )
         return GroundTruth(
             time=round(self.time, 9),
             ego_position=self.ego_position,
@@ -280,13 +299,7 @@ class World:
             signal_pedestrian_green=self.geometry.pedestrian_green(self.time),
             collisions=tuple(self.collisions),
             events=tuple(peds.events),
-            extras={
-                "phase": peds.phase[act],
-                "distracted": peds.distracted[act],
-                "jaywalker": peds.jaywalker[act],
-                "desired_speed": peds.base_speed[act],
-                "background_collisions": tuple(self.background_collisions),
-            },
+            extras=extras,
         )
 
 

@@ -75,6 +75,7 @@ CSV_EPISODE_FIELDS = (
     "yield_compliant",
     "yield_violations",
     "yield_unresolved",
+    "ncap_outcome",
     "passed_crossing",
     "delay",
     "time_to_pass",

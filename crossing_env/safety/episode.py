@@ -30,7 +30,7 @@ from crossing_env.safety.yielding import (
     is_hard_braking,
     min_pedestrian_ttc,
 )
-from crossing_env.types import ConflictArea, FloatArray, GroundTruth, PedState
+from crossing_env.types import ConflictArea, ConflictTruth, FloatArray, GroundTruth, PedState
 from scenarios.config import ScenarioConfig
 
 __all__ = ["EpisodeMetrics"]
@@ -86,6 +86,9 @@ class EpisodeMetrics:
       which the ground truth does not carry.
     - Collisions: counted by kind (pedestrian, vehicle, static) and, apart, those in which the ego was at
       fault (`crossing_env.collision_fault`: nuPlan's rule, decided when the contact began).
+    - NCAP outcome (a scenario whose key pedestrian is a test dummy): impact, not tested (never released),
+      outrun (the rear cleared the dummy's path less than `outrun_margin` before the dummy, on its fixed
+      path at its fixed speed, would reach the car's side) or avoided.
     - Delay: from t = 0 at `EgoConfig.x` until the ego centre passes `conflict_area.x_max + delay_margin`
       (linear interpolation between steps), minus that distance at the speed limit.
     - Speeding: each step's ego speed along the road minus `RoadConfig.speed_limit` (as the reward's
@@ -122,6 +125,12 @@ class EpisodeMetrics:
         self._ped_collisions = 0
         self._veh_collisions = 0
         self._ped_at_fault = 0
+        # a timed conflict's test dummy (NCAP outcome)
+        self._dummy: ConflictTruth | None = None
+        self._dummy_hit = False
+        self._path_clear_time = math.nan
+        self._ego_y = math.nan
+        self._ego_width = math.nan
         self._veh_at_fault = 0
         self._static_collisions = 0
         self._compliant_collisions = 0
@@ -225,6 +234,12 @@ class EpisodeMetrics:
             self._trigger_time = _cross_time(t0, t, self._last_front, front, trig)
         if math.isnan(self._clear_time) and rear >= ca.x_max:
             self._clear_time = _cross_time(t0, t, self._last_rear, rear, ca.x_max)
+        dummy = gt.extras.get("conflict")
+        if dummy is not None and dummy.dummy:
+            self._dummy, self._ego_y, self._ego_width = dummy, float(ego_p[1]), width
+            path = dummy.x + dummy.radius
+            if math.isnan(self._path_clear_time) and rear >= path:
+                self._path_clear_time = _cross_time(t0, t, self._last_rear, rear, path)
         self._last_t, self._last_x, self._last_front, self._last_rear = t, ex, front, rear
 
         # Ego occupancy of the conflict area.
@@ -241,6 +256,7 @@ class EpisodeMetrics:
         for ev in gt.collisions:
             if ev.kind == "pedestrian":
                 self._ped_collisions += 1
+                self._dummy_hit |= self._dummy is not None and ev.other_id == self._dummy.pedestrian_id
                 self._ped_at_fault += bool(ev.at_fault)
                 self._compliant_collisions += bool(ev.compliant)
                 if not ev.car_speed <= self._max_impact:  # also replaces the initial nan
@@ -479,7 +495,26 @@ class EpisodeMetrics:
             vehicle_collisions_at_fault=self._veh_at_fault,
             static_collisions=self._static_collisions,
             yield_unresolved=unresolved,
+            ncap_outcome=self._ncap_outcome(),
         )
+
+    def _ncap_outcome(self) -> str:
+        """'impact', 'outrun', 'not tested', 'avoided' for a test dummy's episode; '' without one."""
+        d = self._dummy
+        if d is None:
+            return ""
+        if self._dummy_hit:
+            return "impact"
+        if math.isnan(d.released_at):
+            return "not tested"
+        # When the dummy's body, on its fixed path at its fixed speed, reaches the car's side of its lane.
+        reach_y = self._ego_width / 2 + d.radius
+        gap = max(abs(d.start_y - self._ego_y) - reach_y, 0.0)
+        reaches = d.released_at + gap / d.speed
+        clear = self._path_clear_time
+        if not math.isnan(clear) and 0.0 <= reaches - clear < self.config.outrun_margin:
+            return "outrun"
+        return "avoided"
 
 
 def _cross_time(t0: float, t1: float, x0: float, x1: float, target: float) -> float:

@@ -60,6 +60,9 @@ class MetricsConfig:
     offer_timeout: float = 3.0
     """Stopped time (s) after which a still-waiting pedestrian is taken to have declined the offer; the
     obligation then ends as compliant (the car may go)."""
+    outrun_margin: float = 1.0
+    """An NCAP episode without contact is 'outrun', not 'avoided', when the ego's rear cleared the dummy's
+    path less than this (s) before the dummy would reach the car's side (`EpisodeResult.ncap_outcome`)."""
     unneeded_stop_speed: float = 0.5
     """The ego counts as stopping (`EpisodeResult.unneeded_stops`) when its speed falls below this (m/s)."""
     stop_attribution_distance: float = 5.0
@@ -83,6 +86,7 @@ _OPTIONAL_FIELDS = frozenset(
         "vehicle_collisions_at_fault",
         "static_collisions",
         "yield_unresolved",
+        "ncap_outcome",
     }
 )
 
@@ -199,6 +203,11 @@ class EpisodeResult:
     static_collisions: int = 0
     """Ego contacts with static bodies (always at fault, unless the ego stood still); 0 on the built-in roads,
     where nothing static stands in the ego's lane."""
+    ncap_outcome: str = ""
+    """For a scenario whose key pedestrian is a test dummy (the `ncap_*` family): 'impact' (the ego hit the
+    dummy), 'outrun' (no contact, but the ego's rear cleared the dummy's path less than
+    `MetricsConfig.outrun_margin` before the dummy reached the car's side: it got away by speed),
+    'not tested' (the dummy was never released: the car never came near) or 'avoided'; '' otherwise."""
     yield_unresolved: int = 0
     """Obligations still open when the episode ended (the pedestrian had not cleared the ego's half and the
     ego had not entered the conflict area): counted among the obligations, not as compliant."""
