@@ -69,7 +69,10 @@ def draw_plan(scenario: ScenarioConfig, geometry: RoadGeometry, rng: np.random.G
     c: ConflictConfig = scenario.conflict  # type: ignore[assignment]
     side = c.side if c.side != "either" else ("far" if rng.random() < 0.5 else "near")
     x = scenario.crossing.position + _uniform(rng, c.x_offset, 0.0)
-    ego_speed = _uniform(rng, c.ego_speed, scenario.ego.speed)
+    if c.ego_speed_grid:  # one draw either way, so the draws after it keep their order
+        ego_speed = float(c.ego_speed_grid[int(rng.integers(len(c.ego_speed_grid)))])
+    else:
+        ego_speed = _uniform(rng, c.ego_speed, scenario.ego.speed)
     walk = _uniform(rng, c.pedestrian_speed, 1.4)
     walk *= (0.9 if scenario.night else 1.0) * (0.8 if c.distracted else 1.0)
     offset = _uniform(rng, c.impact_offset, 0.5)

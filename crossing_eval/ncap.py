@@ -1,12 +1,12 @@
-"""Euro NCAP-style scoring of the `ncap_*` scenarios: avoidance and impact speed per car speed.
+"""Euro NCAP-style scoring of the `ncap_*` scenarios: outcome, colour and score per test speed.
 
-Euro NCAP's AEB pedestrian tests (CPNA, CPFA, CPNC) sweep the car's speed and score, per test speed,
-whether the car avoided the dummy and, if not, how fast it hit it. The `ncap_*` scenarios draw the ego's
-speed per seed from 20-60 km/h, so here episodes are binned by the ego's speed after reset (10 km/h bins)
-and each bin counts the episodes' outcomes (`EpisodeResult.ncap_outcome`: avoided, outrun, impact, not
-tested), the avoidance rate over the tested episodes and the mean impact speed of the impacts (the ego's
-speed when the contact began, as Euro NCAP measures it; the key pedestrian is a dummy that reacts to
-nothing, `ConflictConfig.dummy`). Written into ``report.md``.
+Euro NCAP's AEB pedestrian tests (CPNA, CPFA, CPNC) test the car at 10-60 km/h in 10 km/h steps and
+score, per test speed, whether the car avoided the dummy and, if not, how fast it hit it, as a colour. The
+`ncap_*` scenarios draw one of those test speeds per seed; each test speed's row counts the episodes'
+outcomes (`EpisodeResult.ncap_outcome`: avoided, outrun, impact, not tested), the avoidance rate over the
+tested episodes, the mean impact speed of the impacts (the ego's speed when the contact began, as Euro
+NCAP measures it; the key pedestrian is a dummy that reacts to nothing, `ConflictConfig.dummy`), the Euro
+NCAP 2026 colours with their points, and the NeuroNCAP score. Written into ``report.md`` and ``ncap.csv``.
 """
 
 from __future__ import annotations
@@ -23,14 +23,65 @@ from crossing_eval.tasks import EpisodeRecord
 PREFIX = "ncap_"
 """Scenarios scored this way: the built-in NCAP family and any scenario file named like it."""
 BIN_KMH = 10.0
-"""Width of a car-speed bin (km/h)."""
+"""Spacing of Euro NCAP's test speeds (km/h): an episode's test speed is its car speed to the nearest."""
 
 
-def _bin(speed_ms: float) -> tuple[int, int] | None:
+def _test_speed(speed_ms: float) -> int | None:
+    """An episode's test speed (km/h): its car speed after reset to the nearest 10 km/h.
+
+    The NCAP scenarios draw it from Euro NCAP's grid, so it is exact there.
+    """
     if not math.isfinite(speed_ms):
         return None
-    low = int(math.floor(speed_ms * 3.6 / BIN_KMH) * BIN_KMH)
-    return low, int(low + BIN_KMH)
+    return int(round(speed_ms * 3.6 / BIN_KMH) * BIN_KMH)
+
+
+COLOURS = ("green", "yellow", "orange", "brown", "red")
+"""Euro NCAP's colours, best first."""
+POINTS = {"green": 1.0, "yellow": 0.75, "orange": 0.5, "brown": 0.25, "red": 0.0}
+"""Points per colour (Euro NCAP 2026)."""
+
+
+def colour(test_kmh: float, outcome: str, impact_kmh: float) -> str | None:
+    """Euro NCAP 2026's colour of one test: the impact speed's band at that test speed (None: not tested).
+
+    At 10-20 km/h only avoidance counts (green, else red); at 30 km/h green 0 / brown <= 10 / red; at 40
+    km/h green 0 / orange <= 10 / brown <= 20 / red; from 50 km/h green 0 / yellow <= 10 / orange <= 20 /
+    brown <= 30 / red (impact speeds in km/h). The measured colour is the plain band, without the 2 km/h
+    tolerance, which Euro NCAP applies only to check a carmaker's predicted colour (rating 2026 scorer,
+    sec 4.2.4). Outrunning the dummy is not avoiding it: red.
+    """
+    if outcome == "not tested":
+        return None
+    if outcome == "avoided":
+        return "green"
+    if outcome == "outrun" or not math.isfinite(impact_kmh):
+        return "red"
+    if impact_kmh <= 0.0:
+        return "green"
+    if test_kmh <= 25:
+        bands: tuple[tuple[str, float], ...] = ()
+    elif test_kmh <= 35:
+        bands = (("brown", 10.0),)
+    elif test_kmh <= 45:
+        bands = (("orange", 10.0), ("brown", 20.0))
+    else:
+        bands = (("yellow", 10.0), ("orange", 20.0), ("brown", 30.0))
+    return next((name for name, limit in bands if impact_kmh <= limit), "red")
+
+
+def neuro_ncap(test_kmh: float, outcome: str, impact_kmh: float) -> float:
+    """NeuroNCAP's score of one test: 5 without a collision, else 4 * max(0, 1 - v_impact / v_no_action).
+
+    v_no_action is the test speed; outrunning scores as an impact at the full speed (0); nan if untested.
+    """
+    if outcome == "not tested":
+        return math.nan
+    if outcome == "avoided":
+        return 5.0
+    if outcome == "outrun" or not math.isfinite(impact_kmh):
+        return 0.0
+    return 4.0 * max(0.0, 1.0 - impact_kmh / test_kmh)
 
 
 OUTCOMES = ("avoided", "outrun", "impact", "not tested")
@@ -39,20 +90,26 @@ OUTCOMES = ("avoided", "outrun", "impact", "not tested")
 
 @dataclass(frozen=True)
 class NcapRow:
-    """One (scenario, policy, car-speed bin) of the NCAP table."""
+    """One (scenario, policy, test speed) of the NCAP table."""
 
     scenario: str
     policy: str
-    band: str
-    """Car-speed bin, "lo-hi" km/h."""
+    test_kmh: int
+    """The test speed (km/h)."""
     counts: dict[str, int]
     """Episodes per outcome (`OUTCOMES`)."""
+    colours: dict[str, int]
+    """Tested episodes per Euro NCAP colour (`COLOURS`)."""
     impact_kmh: float
     """Mean impact speed (the car's speed at contact) of the impact episodes, km/h; nan if none."""
+    points: float
+    """Mean Euro NCAP points of the tested episodes (green 1 ... red 0); nan if none was tested."""
+    neuro_ncap: float
+    """Mean NeuroNCAP score of the tested episodes (0-5); nan if none was tested."""
 
     @property
     def episodes(self) -> int:
-        """Episodes in the bin."""
+        """Episodes at this test speed."""
         return sum(self.counts.values())
 
     @property
@@ -75,25 +132,81 @@ def _outcome(result: dict) -> str:
 
 
 def ncap_rows(records: Sequence[EpisodeRecord]) -> list[NcapRow]:
-    """One row per (scenario, policy, car-speed bin) of the `ncap_*` episodes, in that order."""
-    groups: dict[tuple[str, str, tuple[int, int]], list[EpisodeRecord]] = defaultdict(list)
+    """One row per (scenario, policy, test speed) of the `ncap_*` episodes, in that order."""
+    groups: dict[tuple[str, str, int], list[EpisodeRecord]] = defaultdict(list)
     for rec in records:
         name = Path(rec.task.scenario).stem
-        speed_bin = _bin(rec.initial_speed)
-        if name.startswith(PREFIX) and speed_bin is not None:
-            groups[(name, rec.task.policy, speed_bin)].append(rec)
+        test = _test_speed(rec.initial_speed)
+        if name.startswith(PREFIX) and test is not None:
+            groups[(name, rec.task.policy, test)].append(rec)
     rows = []
-    for (name, policy, (lo, hi)), recs in sorted(groups.items()):
+    for (name, policy, test), recs in sorted(groups.items()):
         counts = dict.fromkeys(OUTCOMES, 0)
-        speeds = []
+        colours = dict.fromkeys(COLOURS, 0)
+        speeds, points, scores = [], [], []
         for r in recs:
             outcome = _outcome(r.result)
             counts[outcome] += 1
+            impact = math.nan
             if outcome == "impact" and r.result.get("max_impact_speed") is not None:
-                speeds.append(r.result["max_impact_speed"])
-        impact = 3.6 * sum(speeds) / len(speeds) if speeds else float("nan")
-        rows.append(NcapRow(name, policy, f"{lo}-{hi}", counts, impact))
+                impact = 3.6 * float(r.result["max_impact_speed"])
+                speeds.append(impact)
+            band = colour(test, outcome, impact)
+            if band is not None:
+                colours[band] += 1
+                points.append(POINTS[band])
+                scores.append(neuro_ncap(test, outcome, impact))
+        rows.append(
+            NcapRow(
+                name,
+                policy,
+                test,
+                counts,
+                colours,
+                sum(speeds) / len(speeds) if speeds else math.nan,
+                sum(points) / len(points) if points else math.nan,
+                sum(scores) / len(scores) if scores else math.nan,
+            )
+        )
     return rows
+
+
+NCAP_CSV_FIELDS = (
+    "scenario",
+    "policy",
+    "test_speed_kmh",
+    "episodes",
+    *(f"{o.replace(' ', '_')}" for o in OUTCOMES),
+    "avoidance_of_tested",
+    *COLOURS,
+    "ncap_points",
+    "neuro_ncap",
+    "impact_speed_kmh",
+)
+"""Columns of ``ncap.csv`` (one row per scenario, policy and test speed)."""
+
+
+def ncap_csv_rows(rows: Sequence[NcapRow]) -> list[list[object]]:
+    """The rows of ``ncap.csv`` (nan stays nan; the writer makes it an empty cell)."""
+    return [
+        [
+            r.scenario,
+            r.policy,
+            r.test_kmh,
+            r.episodes,
+            *(r.counts[o] for o in OUTCOMES),
+            r.avoidance,
+            *(r.colours[c] for c in COLOURS),
+            r.points,
+            r.neuro_ncap,
+            r.impact_kmh,
+        ]
+        for r in rows
+    ]
+
+
+def _fmt(x: float, digits: int = 2) -> str:
+    return "-" if math.isnan(x) else f"{x:.{digits}f}"
 
 
 def ncap_markdown(records: Sequence[EpisodeRecord]) -> str:
@@ -104,24 +217,27 @@ def ncap_markdown(records: Sequence[EpisodeRecord]) -> str:
     lines = [
         "## NCAP-style scoring (ncap_* scenarios)",
         "",
-        "Episodes binned by the car's speed after reset. Each episode is avoided (no contact with the"
-        " dummy), outrun (no contact, but the car's rear cleared the dummy's path less than"
-        f" {DEFAULT_METRICS.outrun_margin:g} s before the dummy reached the car's side: it got away by"
-        " speed),"
-        " impact, or not tested (the dummy was never released: the car never came near). Avoided = avoided /"
-        " tested episodes (outrun is not avoided; '-' = none tested); impact speed = mean of the car's speed"
-        " at contact over the impact episodes ('-' = none).",
+        "One row per test speed (Euro NCAP's grid, 10-60 km/h; the car's speed after reset). Each episode is"
+        " avoided (no contact with the dummy), outrun (no contact, but the car's rear cleared the dummy's"
+        f" path less than {DEFAULT_METRICS.outrun_margin:g} s before the dummy reached the car's side: it got"
+        " away by speed), impact, or not tested (the dummy was never released: the car never came near)."
+        " Avoided = avoided / tested (outrun is not avoided; '-' = none tested). Colours are Euro NCAP"
+        " 2026's bands of the impact speed at each test speed (10-20 km/h: only avoidance is green; 30:"
+        " brown <= 10 km/h; 40: orange <= 10, brown <= 20; 50-60: yellow <= 10, orange <= 20, brown <= 30;"
+        " else red; outrun is red), counted as G/Y/O/B/R over the tested episodes; points = their mean"
+        " (green 1, yellow 0.75, orange 0.5, brown 0.25, red 0); NeuroNCAP = mean of 5 without a collision,"
+        " else 4 x max(0, 1 - impact speed / test speed). Impact speed = mean car speed at contact.",
         "",
-        "| scenario | policy | car speed km/h | episodes | avoided | outrun | impact | not tested | avoided"
-        " (of tested) | impact speed km/h |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| scenario | policy | test km/h | episodes | avoided | outrun | impact | not tested | avoided (of"
+        " tested) | G/Y/O/B/R | points | NeuroNCAP | impact km/h |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for row in rows:
         c = row.counts
-        rate = "-" if math.isnan(row.avoidance) else f"{row.avoidance:.2f}"
-        shown = "-" if math.isnan(row.impact_kmh) else f"{row.impact_kmh:.1f}"
+        bands = "/".join(str(row.colours[k]) for k in COLOURS)
         lines.append(
-            f"| {row.scenario} | {row.policy} | {row.band} | {row.episodes} | {c['avoided']} | {c['outrun']}"
-            f" | {c['impact']} | {c['not tested']} | {rate} | {shown} |"
+            f"| {row.scenario} | {row.policy} | {row.test_kmh} | {row.episodes} | {c['avoided']}"
+            f" | {c['outrun']} | {c['impact']} | {c['not tested']} | {_fmt(row.avoidance)} | {bands}"
+            f" | {_fmt(row.points)} | {_fmt(row.neuro_ncap)} | {_fmt(row.impact_kmh, 1)} |"
         )
     return "\n".join(lines) + "\n"

@@ -4,6 +4,8 @@
   figures, and every episode's metrics (`crossing_env.safety.EpisodeResult.as_dict`);
 - ``episodes.csv`` (one row per episode), ``summary.csv`` (one row per policy; no row pools policies) and
   ``per_scenario.csv`` (one row per scenario and policy); missing or undefined values are empty cells;
+- ``ncap.csv`` (runs with an ``ncap_*`` scenario: one row per scenario, policy and test speed, with the
+  outcomes, Euro NCAP colours, points and NeuroNCAP score of `crossing_eval.ncap`);
 - ``report.md`` (per-policy and per-scenario tables and the column definitions, `crossing_eval.report`)
   and ``table.txt`` (the printed table);
 - ``safety_vs_efficiency.png`` (a legend instead of point labels, so no label overlaps another; policies
@@ -34,7 +36,7 @@ import numpy as np
 from crossing_common.files import write_bytes_atomic
 from crossing_common.processes import fork_is_safe
 from crossing_env.safety import json_safe
-from crossing_eval.ncap import ncap_markdown
+from crossing_eval.ncap import NCAP_CSV_FIELDS, ncap_csv_rows, ncap_markdown, ncap_rows
 from crossing_eval.report import csv_cell, per_scenario_rows, report_markdown, scenario_labels
 from crossing_eval.summary import format_table
 from crossing_eval.tasks import EpisodeRecord
@@ -425,6 +427,10 @@ def write_outputs(
     header, rows = per_scenario_rows(summary, labels, policies)
     write_bytes_atomic(out / "per_scenario.csv", _csv_text(header, rows).encode("utf-8"))
     report = report_markdown(summary, policies, labels, settings, extra_sections=ncap_markdown(records))
+    ncap = ncap_rows(records)
+    if ncap:
+        cells = [[csv_cell(v) for v in row] for row in ncap_csv_rows(ncap)]
+        write_bytes_atomic(out / "ncap.csv", _csv_text(NCAP_CSV_FIELDS, cells).encode("utf-8"))
     write_bytes_atomic(out / "report.md", report.encode("utf-8"))
     write_bytes_atomic(out / "table.txt", (format_table(summary, policies) + "\n").encode("utf-8"))
     _plot(records, summary, policies, out)
@@ -436,6 +442,7 @@ def write_outputs(
         "episodes.csv",
         "summary.csv",
         "per_scenario.csv",
+        *(["ncap.csv"] if ncap else []),
         "safety_vs_efficiency.png",
         "min_ttc.png",
         *(f"worst/{w}" for w in worst),

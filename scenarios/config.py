@@ -309,6 +309,9 @@ class ConflictConfig:
     """Range of the conflict point along the road relative to `crossing.position` (m; + is further on)."""
     ego_speed: tuple[float, ...] = (8.3, 13.9)
     """Range of the ego's initial speed (m/s; replaces `ego.speed`), 30-50 km/h by default."""
+    ego_speed_grid: tuple[float, ...] = ()
+    """Test speeds (m/s): when given, each episode draws one of them, with equal odds, instead of a speed
+    from `ego_speed` (Euro NCAP tests on a grid, 10-60 km/h in 10 km/h steps)."""
     pedestrian_speed: tuple[float, ...] = (1.1, 1.7)
     """Range of the pedestrian's walking speed (m/s; Euro NCAP: 1.39 walking, 2.22 running)."""
     impact_offset: tuple[float, ...] = (0.25, 0.75)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from itertools import pairwise
 from typing import Any
 
 from scenarios.config import ConflictConfig
@@ -67,12 +68,25 @@ def range_rule(lo: float, hi: float, *, unit: str = "", why: str = "", optional:
     return Rule(check, text + (f" ({why})" if why else ""), unit, why)
 
 
+def grid_rule(lo: float, hi: float, *, unit: str = "", why: str = "") -> Rule:
+    """A list of distinct values, each within [`lo`, `hi`], in increasing order (empty: not used)."""
+
+    def check(v: Any) -> bool:
+        return all(lo <= x <= hi for x in v) and all(a < b for a, b in pairwise(v))
+
+    text = f"must be increasing values, each with {lo:g} <= value <= {hi:g}" + (f" {unit}" if unit else "")
+    return Rule(check, text + f" (or empty){' (' + why + ')' if why else ''}", unit, why)
+
+
 CONFLICT_RULES: dict[tuple[type, str], Rule] = {
     (ConflictConfig, "x_offset"): range_rule(
         -50.0, 50.0, unit="m", why="the conflict lies near the crossing the metrics measure against"
     ),
     (ConflictConfig, "ego_speed"): range_rule(
         1.0, 27.8, unit="m/s", why="Euro NCAP sweeps 10-60 km/h; 27.8 = 100 km/h; 50 km/h typed as m/s fails"
+    ),
+    (ConflictConfig, "ego_speed_grid"): grid_rule(
+        1.0, 27.8, unit="m/s", why="Euro NCAP tests at 10-60 km/h in 10 km/h steps; 27.8 = 100 km/h"
     ),
     (ConflictConfig, "pedestrian_speed"): range_rule(
         0.3,

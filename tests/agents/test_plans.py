@@ -206,11 +206,13 @@ def test_a_plan_that_passes_her_first_is_not_charged_and_the_worst_deferral_coun
 
 
 def _reacting_cpna() -> ScenarioConfig:
-    """ncap_cpna with the key pedestrian walking by social force (the value study's episodes were measured
-    before it became a test dummy; the plans' reaction to someone who waits for the car is what is tested)."""
+    """ncap_cpna as the value study measured it: a key pedestrian walking by social force and a car speed
+    drawn from 20-60 km/h (before the test dummy and Euro NCAP's speed grid; the plans' reaction to someone
+    who waits for the car is what is tested)."""
     scenario = load_scenario("ncap_cpna")
     assert scenario.conflict is not None
-    return dataclasses.replace(scenario, conflict=dataclasses.replace(scenario.conflict, dummy=False))
+    conflict = dataclasses.replace(scenario.conflict, dummy=False, ego_speed_grid=(), ego_speed=(5.6, 16.7))
+    return dataclasses.replace(scenario, conflict=conflict)
 
 
 def _episode(seed: int, **overrides: object) -> dict:

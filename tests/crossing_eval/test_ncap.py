@@ -8,10 +8,12 @@ import numpy as np
 import pytest
 
 from agents.policy import FunctionPolicy
-from crossing_eval.ncap import ncap_markdown, ncap_rows
+from crossing_env.conflict import RELEASE_DISTANCE
+from crossing_eval.ncap import POINTS, colour, ncap_markdown, ncap_rows, neuro_ncap
 from crossing_eval.tasks import EpisodeRecord, EpisodeTask, episode_seed, run_episode
 from rollout.build import RolloutSpec, build
 from rollout.episode import run_episode as run_rollout
+from scenarios import load_scenario
 
 
 def _record(
@@ -25,36 +27,77 @@ def _record(
     return EpisodeRecord(EpisodeTask(scenario, policy, 0, 0), result, [], [], initial_speed=speed_ms)
 
 
-def test_bins_outcomes_avoidance_of_the_tested_and_impact_speed() -> None:
+def test_test_speeds_outcomes_avoidance_of_the_tested_and_impact_speed() -> None:
     records = [
-        _record("ncap_cpna", "constant_speed", 25 / 3.6, 24 / 3.6),
-        _record("ncap_cpna", "constant_speed", 28 / 3.6, 28 / 3.6),
-        _record("ncap_cpna", "constant_speed", 55 / 3.6, None),
-        _record("ncap_cpna", "yielding", 55 / 3.6, None),
-        _record("ncap_cpna", "yielding", 52 / 3.6, None, "outrun"),
-        _record("ncap_cpna", "yielding", 51 / 3.6, None, "not tested"),
+        _record("ncap_cpna", "constant_speed", 30 / 3.6, 24 / 3.6),
+        _record("ncap_cpna", "constant_speed", 30 / 3.6, 28 / 3.6),
+        _record("ncap_cpna", "constant_speed", 60 / 3.6, None),
+        _record("ncap_cpna", "yielding", 60 / 3.6, None),
+        _record("ncap_cpna", "yielding", 60 / 3.6, None, "outrun"),
+        _record("ncap_cpna", "yielding", 60 / 3.6, None, "not tested"),
         _record("zebra_case1", "yielding", 40 / 3.6, 10.0),  # not an NCAP scenario: left out
     ]
     rows = ncap_rows(records)
-    assert [(r.scenario, r.policy, r.band, r.episodes) for r in rows] == [
-        ("ncap_cpna", "constant_speed", "20-30", 2),
-        ("ncap_cpna", "constant_speed", "50-60", 1),
-        ("ncap_cpna", "yielding", "50-60", 3),
+    assert [(r.scenario, r.policy, r.test_kmh, r.episodes) for r in rows] == [
+        ("ncap_cpna", "constant_speed", 30, 2),
+        ("ncap_cpna", "constant_speed", 60, 1),
+        ("ncap_cpna", "yielding", 60, 3),
     ]
     assert rows[0].avoidance == 0.0 and rows[0].impact_kmh == pytest.approx(26.0)
-    assert rows[1].avoidance == 1.0 and math.isnan(rows[1].impact_kmh)
+    assert rows[0].colours["red"] == 2 and rows[0].points == 0.0  # 24 and 28 km/h at 30 km/h: red
+    assert rows[1].avoidance == 1.0 and math.isnan(rows[1].impact_kmh) and rows[1].neuro_ncap == 5.0
     # Outrunning is not avoiding, and an untested episode counts for nothing: 1 avoided of 2 tested.
     assert rows[2].counts == {"avoided": 1, "outrun": 1, "impact": 0, "not tested": 1}
     assert rows[2].tested == 2 and rows[2].avoidance == 0.5
+    assert rows[2].colours == {"green": 1, "yellow": 0, "orange": 0, "brown": 0, "red": 1}
+    assert rows[2].points == 0.5 and rows[2].neuro_ncap == 2.5
     page = ncap_markdown(records)
-    assert "| ncap_cpna | constant_speed | 20-30 | 2 | 0 | 0 | 2 | 0 | 0.00 | 26.0 |" in page
-    assert "| ncap_cpna | yielding | 50-60 | 3 | 1 | 1 | 0 | 1 | 0.50 | - |" in page
+    assert "| ncap_cpna | constant_speed | 30 | 2 | 0 | 0 | 2 | 0 | 0.00 | 0/0/0/0/2 | 0.00 |" in page
+    assert "| ncap_cpna | yielding | 60 | 3 | 1 | 1 | 0 | 1 | 0.50 | 1/0/0/0/1 | 0.50 | 2.50 | - |" in page
     assert ncap_markdown(records[-1:]) == ""
-    # Only untested episodes: no avoidance rate at all, never 1.00.
+    # Only untested episodes: no avoidance rate, colour or score at all, never a green.
     (alone,) = ncap_rows([_record("ncap_cpfa", "stand", 40 / 3.6, None, "not tested")])
-    assert math.isnan(alone.avoidance) and "| - |" in ncap_markdown(
-        [_record("ncap_cpfa", "stand", 40 / 3.6, None, "not tested")]
-    )
+    assert math.isnan(alone.avoidance) and math.isnan(alone.points) and sum(alone.colours.values()) == 0
+
+
+@pytest.mark.parametrize(
+    ("test_kmh", "impact_kmh", "expected"),
+    [
+        # 10-20 km/h: only full avoidance counts
+        (10, None, "green"),
+        (10, 1.0, "red"),
+        (20, 5.0, "red"),
+        # 30 km/h: green 0 / brown <= 10 / red
+        (30, None, "green"),
+        (30, 10.0, "brown"),
+        (30, 10.5, "red"),
+        # 40 km/h: green 0 / orange <= 10 / brown <= 20 / red
+        (40, 9.9, "orange"),
+        (40, 10.1, "brown"),
+        (40, 20.0, "brown"),
+        (40, 20.1, "red"),
+        # >= 50 km/h: green 0 / yellow <= 10 / orange <= 20 / brown <= 30 / red
+        (50, 3.0, "yellow"),
+        (50, 10.0, "yellow"),
+        (60, 11.9, "orange"),  # the 2 km/h tolerance checks a carmaker's prediction, not the measured colour
+        (60, 20.0, "orange"),
+        (60, 25.0, "brown"),
+        (60, 30.0, "brown"),
+        (60, 30.1, "red"),
+    ],
+)
+def test_euro_ncap_2026_colour_bands(test_kmh: int, impact_kmh: float | None, expected: str) -> None:
+    outcome = "avoided" if impact_kmh is None else "impact"
+    assert colour(test_kmh, outcome, math.nan if impact_kmh is None else impact_kmh) == expected
+
+
+def test_colours_of_outrun_and_untested_and_the_neuro_ncap_score() -> None:
+    assert colour(50, "outrun", math.nan) == "red" and colour(50, "not tested", math.nan) is None
+    assert POINTS == {"green": 1.0, "yellow": 0.75, "orange": 0.5, "brown": 0.25, "red": 0.0}
+    assert neuro_ncap(50, "avoided", math.nan) == 5.0
+    assert neuro_ncap(50, "impact", 20.0) == pytest.approx(4 * (1 - 20 / 50))
+    assert neuro_ncap(50, "impact", 50.0) == 0.0 and neuro_ncap(50, "outrun", math.nan) == 0.0
+    assert math.isnan(neuro_ncap(50, "not tested", math.nan))
 
 
 def _outcomes(scenario: str, action: float | None, policy: str = "constant_speed", n: int = 6) -> list[str]:
@@ -74,7 +117,7 @@ def _outcomes(scenario: str, action: float | None, policy: str = "constant_speed
 def test_episode_outcomes_of_careless_careful_and_absent_cars(scenario: str) -> None:
     assert set(_outcomes(scenario, None)) == {"impact"}  # holds its speed: hits the dummy
     assert set(_outcomes(scenario, None, policy="yielding")) == {"avoided"}
-    assert set(_outcomes(scenario, -1.0, n=3)) == {"not tested"}  # brakes to a stand far back at once
+    assert "not tested" in _outcomes(scenario, -1.0, n=3)  # brakes to a stand at once, far back
     assert "avoided" not in _outcomes(scenario, 1.0)  # full throttle never avoids
 
 
@@ -101,7 +144,25 @@ def test_non_dummy_scenarios_have_no_ncap_outcome() -> None:
     assert _outcomes("zebra_case1", None, n=1) == [""]
 
 
-def test_records_carry_the_drawn_car_speed() -> None:
-    tasks = [EpisodeTask("ncap_cpna", "constant_speed", e, 100 + e) for e in range(3)]
+def test_records_carry_the_drawn_test_speed() -> None:
+    grid = set(load_scenario("ncap_cpna").conflict.ego_speed_grid)
+    assert {round(v * 3.6) for v in grid} == {10, 20, 30, 40, 50, 60}  # Euro NCAP's test speeds
+    tasks = [EpisodeTask("ncap_cpna", "constant_speed", e, 100 + e) for e in range(6)]
     speeds = {run_episode(t).initial_speed for t in tasks}
-    assert all(5.5 <= s <= 16.8 for s in speeds) and len(speeds) == 3  # drawn per seed from 20-60 km/h
+    assert speeds <= grid and len(speeds) >= 3  # one grid speed drawn per seed
+
+
+@pytest.mark.parametrize("scenario", ["ncap_cpna", "ncap_cpfa", "ncap_cpnc"])
+def test_a_car_that_stands_far_back_is_not_tested_and_never_avoids(scenario: str) -> None:
+    """Braking to a stand at once: more than 60 m from the dummy's path it is never released (not tested);
+    closer, a car that stands for a second gives the dummy the way (the conflict's release rule)."""
+    run = build(RolloutSpec(scenario=scenario, policy="constant_speed"))
+    brake = FunctionPolicy(lambda obs: -np.ones(1, np.float32))
+    for k in range(4):
+        result = run_rollout(run.env, episode_seed(9000, scenario, k), policy=brake).result
+        world = run.env.unwrapped.world
+        front = float(world.traffic.x[0] + world.traffic.length[0] / 2)
+        far = world.conflict.plan.x - world.conflict.plan.radius - front > RELEASE_DISTANCE
+        assert (result["ncap_outcome"] == "not tested") == far
+        assert result["ncap_outcome"] in {"not tested", "avoided"}
+    run.env.close()
