@@ -173,14 +173,13 @@ class World:
         self.collisions = []
         self.background_collisions = []
         tr = self.traffic
-        heading = 0.0 if tr.direction[0] > 0 else math.pi
         for c in contacts:
             ego = c.vehicle_slot == 0
             kind, fault = "background", ""
             if ego:
                 kind = "pedestrian"
                 (ex, ey), (px, py) = c.car_position, c.pedestrian_position
-                length, width = float(tr.length[0]), float(tr.width[0])
+                length, width, heading = float(tr.length[0]), float(tr.width[0]), self._ego_heading()
                 radius = float(self.pedestrians.radius[c.pedestrian_slot])
                 fault = contact_type(
                     c.car_speed,
@@ -204,19 +203,22 @@ class World:
         self.background_contacts += len(self.background_collisions)
 
     def _check_ego_vehicle_overlap(self) -> None:
-        """Kinematic bodies never collide in pymunk: ego–car contact is `_new_ego_overlaps`."""
+        """Kinematic bodies never collide in pymunk: ego–car contact is `_new_ego_overlaps`.
+
+        Parked vehicles stand off the carriageway, so the ego only ever touches moving road users' vehicles
+        (kind 'vehicle'; none is static).
+        """
         tr = self.traffic
         new = _new_ego_overlaps(tr.active, tr.lane, tr.parked, tr.x, tr.length, self._ego_vehicle_contact)
-        sign = float(tr.direction[0])
-        heading = 0.0 if sign > 0 else math.pi
-        length = float(tr.length[0])
+        if not new.shape[0]:
+            return
+        sign, heading, length = float(tr.direction[0]), self._ego_heading(), float(tr.length[0])
         for i in new:
             rel = abs(tr.speed[0] * tr.direction[0] - tr.speed[i] * tr.direction[i])
-            static = bool(tr.parked[i])
             fault = contact_type(
                 float(abs(tr.speed[0])),
                 float(abs(tr.speed[i])),
-                other_static=static,
+                other_static=False,
                 other_behind=is_behind(
                     float(tr.x[0]), float(tr.y[0]), heading, length, float(tr.x[i]), float(tr.y[i])
                 ),
@@ -227,7 +229,7 @@ class World:
             self.collisions.append(
                 CollisionEvent(
                     time=round(self.time, 9),
-                    kind="static" if static else "vehicle",
+                    kind="vehicle",
                     other_id=int(tr.ids[i]),
                     position=(float((tr.x[0] + tr.x[i]) / 2), float(tr.y[0])),
                     relative_speed=float(rel),
@@ -237,6 +239,10 @@ class World:
                     at_fault=fault in AT_FAULT_TYPES,
                 )
             )
+
+    def _ego_heading(self) -> float:
+        """The ego's heading (rad): along +x or −x, as its lane runs."""
+        return 0.0 if self.traffic.direction[0] > 0 else math.pi
 
     # ------------------------------------------------------------------ views
     @property

@@ -125,14 +125,14 @@ class EpisodeMetrics:
         self._ped_collisions = 0
         self._veh_collisions = 0
         self._ped_at_fault = 0
+        self._veh_at_fault = 0
+        self._static_collisions = 0
         # a timed conflict's test dummy (NCAP outcome)
         self._dummy: ConflictTruth | None = None
         self._dummy_hit = False
         self._path_clear_time = math.nan
         self._ego_y = math.nan
         self._ego_width = math.nan
-        self._veh_at_fault = 0
-        self._static_collisions = 0
         self._compliant_collisions = 0
         self._max_impact = math.nan
         self._bg_collisions = 0
