@@ -5,14 +5,20 @@ rendered from that JSON into the docs between markers, never typed by hand.
     python -m benchmarks.results default_table        # measure one entry (slow), write its JSON, render
     python -m benchmarks.results --render             # re-render every table from its JSON (fast)
     python -m benchmarks.results --check              # exit 1 if a rendered table differs from its JSON
+    python -m benchmarks.results --stale              # regenerate every stale entry, cheapest first
 
-Each JSON records the commit it was measured on and a **behaviour fingerprint**: a hash of a small
-fixed-seed run through the same code path (the rollout of every built-in scenario with two policies). When
-the code's fingerprint no longer matches the JSON's, the table is rendered with a marker saying that it was
-measured on an older behaviour and must be regenerated: a stale table is never shown as current. An
-entry whose numbers do not come from simulated episodes carries its own fingerprint instead (the predictor
-tables on recorded data: a hash of the shipped weights' manifest, the social-force fit and a tiny fixed
-evaluation of every row), and two blocks may render one JSON (measured once).
+Each JSON records the commit it was measured on, what the measurement cost (seconds) and a **fingerprint**
+of what the entry shows. A small fixed-seed run through the same code path (every built-in scenario with two
+policies, `fingerprint_records`) gives both parts of it: what the episodes *do* (actions, final states,
+contacts) and the entry's own *figures* computed from those episodes by the code its numbers come from (the
+default table's `format_table`, the discrimination report's cells, ...). Adding a field to the episode record
+moves neither part, so no table goes stale for it; changing how a shown figure is computed moves exactly the
+entries that show it. When the code's fingerprint no longer matches the JSON's, the table is rendered with a
+marker saying that it must be regenerated (``--stale`` regenerates every such entry, cheapest first): a stale
+table is never shown as current. An entry whose numbers do not come from simulated episodes carries its own
+fingerprint instead (the predictor tables on recorded data: a hash of the shipped weights' manifest, the
+social-force fit and a tiny fixed evaluation of every row), and two blocks may render one JSON (measured
+once).
 Rendered blocks sit between ``<!-- results:NAME -->`` and ``<!-- /results:NAME -->`` in a markdown file.
 """
 
@@ -28,7 +34,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -42,26 +48,59 @@ FINGERPRINT_STEPS = 300
 crossing in every built-in scenario, so a change to its rules changes the hash."""
 
 
-@functools.cache
-def behaviour_fingerprint() -> str:
-    """Hash of the actions and scored results of a short fixed-seed rollout of every built-in scenario.
+FINGERPRINT_BASE_SEED = 2024
+"""Base seed of the fingerprint episodes (`crossing_eval.tasks.episode_seed`, episode 0 of each scenario)."""
 
-    It runs through `rollout` (the path `crossing-eval` takes), so it changes whenever a scenario file, the
-    world, the predictors, a fingerprint policy or the metrics change what an episode gives.
+
+@functools.cache
+def fingerprint_records() -> tuple[Any, ...]:
+    """The fingerprint episodes as `crossing-eval`'s records: every built-in scenario with each policy of
+    `FINGERPRINT_POLICIES`, one fixed-seed episode of `FINGERPRINT_STEPS` steps each.
+
+    They run through `rollout` (the path `crossing-eval` takes), so they change whenever a scenario file, the
+    world, the predictors or a fingerprint policy change what an episode does.
     """
-    from crossing_eval.tasks import episode_seed
+    from crossing_eval.tasks import EpisodeRecord, EpisodeTask, episode_seed
     from rollout import RolloutSpec, run_spec
     from scenarios import list_scenarios
 
-    digest = hashlib.sha256()
+    records = []
     for scenario in sorted(list_scenarios()):
         for policy in FINGERPRINT_POLICIES:
-            spec = RolloutSpec(scenario=scenario, policy=policy)
-            episode = run_spec(spec, episode_seed(2024, scenario, 0), FINGERPRINT_STEPS)
-            digest.update(f"{scenario}/{policy}".encode())
-            digest.update(json.dumps(episode.actions).encode())
-            digest.update(json.dumps(episode.result, sort_keys=True, default=str).encode())
+            seed = episode_seed(FINGERPRINT_BASE_SEED, scenario, 0)
+            episode = run_spec(RolloutSpec(scenario=scenario, policy=policy), seed, FINGERPRINT_STEPS)
+            records.append(
+                EpisodeRecord(
+                    task=EpisodeTask(scenario=scenario, policy=policy, episode=0, seed=seed),
+                    result=episode.result,
+                    actions=episode.actions,
+                    predictors=[],
+                    final_ground_truth=episode.final_ground_truth,
+                    episode_return=episode.episode_return,
+                    initial_speed=episode.initial_speed,
+                )
+            )
+    return tuple(records)
+
+
+def dynamics_digest(records: Sequence[Any]) -> str:
+    """Hash of what the episodes do (`rollout.dynamics_digest` of each, with its scenario, policy and seed).
+
+    No figure computed from an episode enters it (those are each entry's `Entry.figures`), so a field added
+    to the episode record leaves it as it was.
+    """
+    from rollout import dynamics_digest as episode_digest
+
+    digest = hashlib.sha256()
+    for record in records:
+        digest.update(f"{record.task.scenario}/{record.task.policy}/{record.task.seed}".encode())
+        digest.update(episode_digest(record).encode())
     return digest.hexdigest()[:16]
+
+
+def behaviour_fingerprint() -> str:
+    """What the fingerprint episodes do (`dynamics_digest`): the listing's summary line."""
+    return dynamics_digest(fingerprint_records())
 
 
 LEARNED_FINGERPRINT_SCENARIOS = ("busy_zebra", "children_running", "zebra_case1")
@@ -69,38 +108,67 @@ LEARNED_FINGERPRINT_SCENARIOS = ("busy_zebra", "children_running", "zebra_case1"
 
 
 @functools.cache
-def learned_fingerprint() -> str:
-    """The behaviour fingerprint extended by the shipped learned policies (their files and a short rollout).
+def learned_stamp() -> str:
+    """The shipped learned policies: their files and what a short rollout of each does.
 
-    The behaviour fingerprint drives only the rule policies; a table with a learned row (the default table,
+    The fingerprint episodes drive only the rule policies; a table with a learned row (the default table,
     the safe-RL tables) must also go stale when the weights, the shield or the numpy actor change.
     """
     from agents.registry import SHIPPED_POLICIES
     from crossing_eval.tasks import episode_seed
     from rollout import RolloutSpec, run_spec
 
-    digest = hashlib.sha256(behaviour_fingerprint().encode())
+    digest = hashlib.sha256()
     for name in sorted(SHIPPED_POLICIES):
         digest.update(SHIPPED_POLICIES[name].read_bytes())
         for scenario in LEARNED_FINGERPRINT_SCENARIOS:
             spec = RolloutSpec(scenario=scenario, policy=name)
-            episode = run_spec(spec, episode_seed(2024, scenario, 0), FINGERPRINT_STEPS)
+            episode = run_spec(spec, episode_seed(FINGERPRINT_BASE_SEED, scenario, 0), FINGERPRINT_STEPS)
             digest.update(f"{scenario}/{name}".encode())
             digest.update(json.dumps(episode.actions).encode())
     return digest.hexdigest()[:16]
 
 
-def default_run_fingerprint() -> str:
-    """`learned_fingerprint` and the intent weights file, for tables of `crossing-eval`'s default run.
+def intent_weights_stamp() -> str:
+    """The intent weights file, for tables of `crossing-eval`'s default run.
 
     The default run's `predictive_yielding` reads QLB's calibration and release bound from that file; a new
-    bound changes its row while neither rule policy of the behaviour fingerprint moves.
+    bound changes its row while neither rule policy of the fingerprint episodes moves.
     """
     from predictors.learned_intent_weights import WEIGHTS_PATH
 
-    digest = hashlib.sha256(learned_fingerprint().encode())
-    digest.update(WEIGHTS_PATH.read_bytes())
-    return digest.hexdigest()[:16]
+    return hashlib.sha256(WEIGHTS_PATH.read_bytes()).hexdigest()[:16]
+
+
+DEFAULT_RUN_STAMPS: tuple[Callable[[], str], ...] = (learned_stamp, intent_weights_stamp)
+"""What a table of `crossing-eval`'s default run depends on beyond the fingerprint episodes."""
+
+
+def table_figures(records: Sequence[Any]) -> str:
+    """The printed table of `crossing-eval` (every column) computed on the fingerprint episodes."""
+    from crossing_eval.summary import format_table, summarise
+
+    return format_table(summarise(records), FINGERPRINT_POLICIES)
+
+
+def discrimination_figures(records: Sequence[Any]) -> str:
+    """The discrimination report's cells (`benchmarks.discrimination.cell`) of the fingerprint episodes."""
+    from benchmarks.discrimination import cell
+    from scenarios import load_scenario
+
+    cells = {
+        f"{r.task.scenario}/{r.task.policy}": cell([r], load_scenario(r.task.scenario).duration)
+        for r in records
+    }
+    return json.dumps(cells, sort_keys=True, default=str)
+
+
+def safe_rl_figures(records: Sequence[Any]) -> str:
+    """The safe-RL study's scores (`studies.safe_rl.scores`) of each fingerprint policy's episodes."""
+    from studies.safe_rl import scores
+
+    by_policy = {p: scores([r for r in records if r.task.policy == p]) for p in FINGERPRINT_POLICIES}
+    return json.dumps(by_policy, sort_keys=True, default=str)
 
 
 def source_commit() -> str:
@@ -414,7 +482,7 @@ def _render_script(data: dict[str, Any], name: str) -> str:
     return _script_block(data, name, _SCRIPT_TIMING[kind].format(wall=data["wall_seconds"]))
 
 
-def _script_entry(name: str, tier: str, fingerprint: Callable[[], str] | None = None) -> Entry:
+def _script_entry(name: str, tier: str, stamps: tuple[Callable[[], str], ...] = ()) -> Entry:
     """A benchmark script of ``docs/benchmarks.md`` run with its documented options, its report in a block."""
     script, args, _ = BENCHMARK_SCRIPTS[name]
     return Entry(
@@ -423,7 +491,7 @@ def _script_entry(name: str, tier: str, fingerprint: Callable[[], str] | None = 
         functools.partial(_script_report, script, *args),
         functools.partial(_render_script, name=name),
         REPO / "docs" / "benchmarks.md",
-        fingerprint=fingerprint,
+        stamps=stamps,
     )
 
 
@@ -497,9 +565,15 @@ class Entry:
     """The markdown file that holds the block between the markers."""
     behaviour: bool = True
     """Whether the numbers depend on simulated behaviour (then the fingerprint decides staleness)."""
+    figures: Callable[[Sequence[Any]], str] | None = None
+    """What the entry shows, computed on the fingerprint episodes by the code its numbers come from (None:
+    its numbers are not per-episode figures, only what the episodes do counts: speeds, memory, ...)."""
+    stamps: tuple[Callable[[], str], ...] = ()
+    """What else its numbers depend on beyond the fingerprint episodes (the learned policies, a weights
+    file)."""
     fingerprint: Callable[[], str] | None = None
-    """The entry's own fingerprint, for numbers that do not depend on the simulated behaviour (None: the
-    behaviour fingerprint, if ``behaviour``)."""
+    """The entry's own fingerprint, for numbers that do not come from the fingerprint episodes at all (it
+    replaces theirs)."""
     data: str = ""
     """Name of the entry whose JSON this block renders, when one measurement feeds two documents."""
 
@@ -508,11 +582,26 @@ class Entry:
         """The committed JSON."""
         return RESULTS_DIR / f"{self.data or self.name}.json"
 
-    def current_fingerprint(self, behaviour: str | None) -> str | None:
-        """What the JSON's fingerprint must equal to be current (None: never stale)."""
+    def current_fingerprint(self, records: Sequence[Any] | None = None) -> str | None:
+        """What the JSON's fingerprint must equal to be current (None: never stale), from `records` (default:
+        `fingerprint_records`)."""
         if self.fingerprint is not None:
             return self.fingerprint()
-        return behaviour if self.behaviour else None
+        if not self.behaviour:
+            return None
+        if records is None:
+            return _entry_fingerprint(self)
+        digest = hashlib.sha256(dynamics_digest(records).encode())
+        if self.figures is not None:
+            digest.update(self.figures(records).encode())
+        for stamp in self.stamps:
+            digest.update(stamp().encode())
+        return digest.hexdigest()[:16]
+
+
+@functools.cache
+def _entry_fingerprint(entry: Entry) -> str | None:
+    return entry.current_fingerprint(fingerprint_records())
 
 
 ENTRIES: dict[str, Entry] = {
@@ -524,7 +613,8 @@ ENTRIES: dict[str, Entry] = {
             _measure_default_table,
             _render_default_table,
             REPO / "docs" / "evaluation.md",
-            fingerprint=default_run_fingerprint,
+            figures=table_figures,
+            stamps=DEFAULT_RUN_STAMPS,
         ),
         Entry(
             "default_table_summary",
@@ -532,7 +622,8 @@ ENTRIES: dict[str, Entry] = {
             _measure_default_table,
             _render_default_table,
             REPO / "README.md",
-            fingerprint=default_run_fingerprint,
+            figures=table_figures,
+            stamps=DEFAULT_RUN_STAMPS,
             data="default_table",
         ),
         Entry(
@@ -541,6 +632,7 @@ ENTRIES: dict[str, Entry] = {
             _measure_discrimination,
             _render_discrimination,
             REPO / "docs" / "scenario_discrimination.md",
+            figures=discrimination_figures,
         ),
         Entry(
             "safe_rl",
@@ -548,7 +640,8 @@ ENTRIES: dict[str, Entry] = {
             _measure_safe_rl,
             _render_safe_rl,
             REPO / "docs" / "rl.md",
-            fingerprint=learned_fingerprint,
+            figures=safe_rl_figures,
+            stamps=(learned_stamp,),
         ),
         Entry(
             "safe_rl_summary",
@@ -556,7 +649,8 @@ ENTRIES: dict[str, Entry] = {
             _measure_safe_rl,
             _render_safe_rl_summary,
             REPO / "README.md",
-            fingerprint=learned_fingerprint,
+            figures=safe_rl_figures,
+            stamps=(learned_stamp,),
             data="safe_rl",
         ),
         Entry(
@@ -565,6 +659,7 @@ ENTRIES: dict[str, Entry] = {
             _measure_safe_rl_long,
             _render_safe_rl_long,
             REPO / "docs" / "rl.md",
+            figures=safe_rl_figures,
         ),
         Entry(
             "intention",
@@ -628,7 +723,8 @@ ENTRIES: dict[str, Entry] = {
             _measure_first_result,
             _render_first_result,
             REPO / "docs" / "benchmarks.md",
-            fingerprint=default_run_fingerprint,
+            figures=table_figures,
+            stamps=DEFAULT_RUN_STAMPS,
         ),
         Entry(
             "first_result_summary",
@@ -636,7 +732,8 @@ ENTRIES: dict[str, Entry] = {
             _measure_first_result,
             _render_first_result_summary,
             REPO / "README.md",
-            fingerprint=default_run_fingerprint,
+            figures=table_figures,
+            stamps=DEFAULT_RUN_STAMPS,
             data="first_result",
         ),
         Entry(
@@ -649,7 +746,7 @@ ENTRIES: dict[str, Entry] = {
         _script_entry("env_throughput", "fast"),
         _script_entry("env_throughput_wrappers", "slow"),
         _script_entry("scaling", "slow"),
-        _script_entry("eval_throughput", "slow", fingerprint=learned_fingerprint),
+        _script_entry("eval_throughput", "slow", stamps=(learned_stamp,)),
         _script_entry("soak", "slow"),
         _script_entry("world_health", "slow"),
         _script_entry("oracle_cost", "slow"),
@@ -659,6 +756,7 @@ ENTRIES: dict[str, Entry] = {
             _measure_predictor_compare,
             _render_predictor_compare,
             REPO / "docs" / "evaluation.md",
+            figures=table_figures,
         ),
     )
 }
@@ -674,21 +772,59 @@ def _markers(name: str) -> tuple[str, str]:
 
 
 def stale_note(data: dict[str, Any], fingerprint: str | None, name: str = "") -> str:
-    """The line rendered above a table whose behaviour fingerprint no longer matches the code's."""
+    """The line rendered above a table whose fingerprint no longer matches the code's."""
     if fingerprint is None or data.get("fingerprint") == fingerprint:
         return ""
     return (
-        f"> **Stale:** measured on commit `{str(data.get('commit', 'unknown'))[:12]}` (behaviour fingerprint"
-        f" `{data.get('fingerprint')}`); the code's behaviour has changed since (`{fingerprint}`)."
+        f"> **Stale:** measured on commit `{str(data.get('commit', 'unknown'))[:12]}` (fingerprint"
+        f" `{data.get('fingerprint')}`); what it shows has changed since (`{fingerprint}`)."
         f" Regenerate with `python -m benchmarks.results {name or data.get('name', '')}`.\n\n"
     )
 
 
-def rendered_block(entry: Entry, fingerprint: str | None) -> str:
+def rendered_block(entry: Entry) -> str:
     """The block between the markers: the stale note (if any) and the entry's rendering of its JSON."""
     data = json.loads(entry.json_path.read_text(encoding="utf-8"))
-    note = stale_note(data, entry.current_fingerprint(fingerprint), entry.data or entry.name)
+    note = stale_note(data, entry.current_fingerprint(), entry.data or entry.name)
     return note + entry.render(data)
+
+
+def is_stale(entry: Entry) -> bool:
+    """Whether the entry's JSON is missing or was measured on what no longer matches the code."""
+    if not entry.json_path.exists():
+        return True
+    data = json.loads(entry.json_path.read_text(encoding="utf-8"))
+    return bool(stale_note(data, entry.current_fingerprint()))
+
+
+def last_cost(entry: Entry) -> float | None:
+    """Seconds its last measurement took, as its JSON records them (None: not recorded)."""
+    if not entry.json_path.exists():
+        return None
+    data = json.loads(entry.json_path.read_text(encoding="utf-8"))
+    cost = data.get("cost_seconds", data.get("wall_seconds"))
+    return None if cost is None else float(cost)
+
+
+def stale_order(entries: Sequence[Entry]) -> list[Entry]:
+    """The stale entries, one per JSON, cheapest first by their last cost (unknown costs last, fast tier
+    before slow)."""
+    chosen: dict[Path, Entry] = {}
+    for entry in entries:
+        if entry.json_path not in chosen and is_stale(entry):
+            chosen[entry.json_path] = entry
+
+    def key(entry: Entry) -> tuple[bool, float, bool, str]:
+        cost = last_cost(entry)
+        return cost is None, cost or 0.0, entry.tier != "fast", entry.name
+
+    return sorted(chosen.values(), key=key)
+
+
+def _cost_text(cost: float | None) -> str:
+    if cost is None:
+        return "last cost unknown"
+    return f"last cost {cost / 60:.0f} min" if cost >= 600 else f"last cost {cost:.0f} s"
 
 
 _BLOCK = r"\n(?:(.*?)\n)?"
@@ -724,13 +860,41 @@ def write_block(entry: Entry, block: str) -> bool:
     return True
 
 
-def measure(entry: Entry, fingerprint: str) -> None:
-    """Run the entry's command and store its JSON with the commit and the fingerprint."""
+def measure(entry: Entry) -> float:
+    """Run the entry's command and store its JSON with the commit, the fingerprint and the cost (seconds,
+    returned)."""
     commit = source_commit()  # before the run: the entry's own JSON and page make the tree dirty after it
+    start = time.perf_counter()
     data = entry.measure()
-    data.update(name=entry.data or entry.name, commit=commit, fingerprint=fingerprint)
+    cost = round(time.perf_counter() - start, 1)
+    fingerprint = entry.current_fingerprint() or behaviour_fingerprint()
+    data.update(name=entry.data or entry.name, commit=commit, fingerprint=fingerprint, cost_seconds=cost)
     entry.json_path.parent.mkdir(parents=True, exist_ok=True)
     entry.json_path.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+    return cost
+
+
+def _render(entry: Entry) -> None:
+    """Write the blocks of every entry that renders `entry`'s JSON."""
+    for other in ENTRIES.values():
+        if other.json_path == entry.json_path:
+            write_block(other, rendered_block(other))
+
+
+def regenerate_stale() -> list[str]:
+    """Measure every stale entry, cheapest first, each JSON written (and its blocks rendered) as soon as it
+    finishes: an interrupted run resumes where it stopped, as the finished entries are current. Returns the
+    names measured."""
+    todo = stale_order(list(ENTRIES.values()))
+    if not todo:
+        print("every entry is current", file=sys.stderr)
+    for k, entry in enumerate(todo, 1):
+        cost_text = _cost_text(last_cost(entry))
+        print(f"[{k}/{len(todo)}] {entry.name}: measuring ({cost_text}) ...", file=sys.stderr)
+        cost = measure(entry)
+        _render(entry)
+        print(f"[{k}/{len(todo)}] {entry.name}: done in {cost:.0f} s", file=sys.stderr)
+    return [e.name for e in todo]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -740,11 +904,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--tier", choices=("fast", "slow"), help="measure every entry of this tier")
     parser.add_argument("--render", action="store_true", help="re-render every table from its JSON")
     parser.add_argument("--check", action="store_true", help="exit 1 if a rendered table differs")
+    parser.add_argument(
+        "--stale", action="store_true", help="measure every stale entry, cheapest first (resumable)"
+    )
     args = parser.parse_args(argv)
     unknown = [n for n in args.names if n not in ENTRIES]
     if unknown:
         parser.error(f"unknown entries {unknown}; known: {', '.join(ENTRIES)}")
-    fingerprint = behaviour_fingerprint()
+    if args.stale:
+        regenerate_stale()
     chosen = list(
         dict.fromkeys([ENTRIES[n] for n in args.names] + [e for e in ENTRIES.values() if e.tier == args.tier])
     )
@@ -754,25 +922,26 @@ def main(argv: list[str] | None = None) -> int:
             continue
         measured.add(entry.json_path)
         print(f"measuring {entry.name} ...", file=sys.stderr)
-        measure(entry, entry.current_fingerprint(fingerprint) or fingerprint)
+        measure(entry)
     differs = []
     for entry in ENTRIES.values():
         if not entry.json_path.exists():
-            print(f"{entry.name:16s} not measured: no {entry.json_path.name}")
+            print(f"{entry.name:28s} not measured: no {entry.json_path.name}")
             differs.append(entry.name)
             continue
-        block = rendered_block(entry, fingerprint)
+        block = rendered_block(entry)
         if args.check:
             if block != committed_block(entry):
                 differs.append(entry.name)
-        elif chosen or args.render:
+        elif chosen or args.render or args.stale:
             write_block(entry, block)
         data = json.loads(entry.json_path.read_text(encoding="utf-8"))
-        state = "stale" if stale_note(data, entry.current_fingerprint(fingerprint)) else "current"
+        state = "stale" if is_stale(entry) else "current"
         print(
-            f"{entry.name:16s} {state:8s} measured on {str(data.get('commit'))[:12]}  {entry.document.name}"
+            f"{entry.name:28s} {state:8s} measured on {str(data.get('commit'))[:12]}"
+            f"  {_cost_text(last_cost(entry)):20s}  {entry.document.name}"
         )
-    print(f"behaviour fingerprint of this tree: {fingerprint}")
+    print(f"what the fingerprint episodes do (dynamics digest) in this tree: {behaviour_fingerprint()}")
     if differs:
         print(f"rendered tables differ from their JSON (or have none): {', '.join(differs)}", file=sys.stderr)
         return 1 if args.check else 0

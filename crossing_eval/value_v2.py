@@ -66,7 +66,7 @@ METRICS: dict[str, tuple[tuple[str, ...], Callable[..., np.ndarray], str, int, i
 """The table's metrics, in column order."""
 
 
-def _columns(records: Sequence[dict[str, Any]], free_flow: dict[str, float]) -> dict[str, np.ndarray]:
+def row_columns(records: Sequence[dict[str, Any]], free_flow: dict[str, float]) -> dict[str, np.ndarray]:
     """Per-episode arrays of one row (records sorted by scenario and episode)."""
 
     def col(fn: Callable[[dict[str, Any], str], float]) -> np.ndarray:
@@ -91,6 +91,15 @@ def _columns(records: Sequence[dict[str, Any]], free_flow: dict[str, float]) -> 
         "separation": col(finite("min_separation")),
         "unneeded_stops": col(lambda r, _: r.get("unneeded_stops", 0)),
     }
+
+
+def episode_figures(result: dict[str, Any], scenario: str) -> dict[str, float]:
+    """One episode's figures as the study's tables compute them (`row_columns` of that episode alone).
+
+    The study's fingerprint hashes these, so that a field added to the episode record leaves it current.
+    """
+    cols = row_columns([{"result": result, "scenario": scenario}], _free_flow_times([scenario]))
+    return {key: float(values[0]) for key, values in cols.items()}
 
 
 def _oracle_of(intention: str, predictor: str) -> tuple[str, str] | None:
@@ -178,9 +187,9 @@ def analyse(
     def metrics(key: tuple[str, str], keys: set[tuple[str, int]]) -> dict[str, Any]:
         """Row `key` on the episodes `keys`, paired with the reference and its oracle on the same ones."""
         okey = _oracle_of(*key)
-        mine = _columns(_select(records[key], keys), free_flow)
-        ref = _columns(_select(ref_all, keys), free_flow)
-        oracle = None if okey not in records else _columns(_select(records[okey], keys), free_flow)
+        mine = row_columns(_select(records[key], keys), free_flow)
+        ref = row_columns(_select(ref_all, keys), free_flow)
+        oracle = None if okey not in records else row_columns(_select(records[okey], keys), free_flow)
         if len(ref["delay"]) != len(keys) or (oracle is not None and len(oracle["delay"]) != len(keys)):
             raise ValueError(f"row {key[0]} / {key[1]} is not paired with the reference and its oracle")
         return _compare(mine, ref, oracle, seed, n_resamples)
@@ -257,8 +266,8 @@ def _delay_by_scenario(
     out: dict[str, dict[str, Any]] = {}
     for sc in sorted({r["scenario"] for r in recs}):
         keys = {(r["scenario"], r["episode"]) for r in recs if r["scenario"] == sc}
-        mine = _columns(_select(recs, keys), free_flow)["delay"]
-        ref = _columns(_select(ref_all, keys), free_flow)["delay"]
+        mine = row_columns(_select(recs, keys), free_flow)["delay"]
+        ref = row_columns(_select(ref_all, keys), free_flow)["delay"]
         lo, hi = _interval([mine, ref], _difference(fn, 1), n_resamples, seed)
         value = float(fn(mine))
         out[sc] = {"value": value, "diff": value - float(fn(ref)), "diff_ci": [lo, hi], "episodes": len(keys)}

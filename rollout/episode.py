@@ -8,6 +8,8 @@ policy's view), the actions (enough to replay it), the return and the final grou
 
 from __future__ import annotations
 
+import hashlib
+import json
 import sys
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
@@ -57,6 +59,30 @@ class Episode:
     """Last ground truth (lets a replay check that it reproduced the episode)."""
     initial_speed: float = float("nan")
     """The ego's speed after reset (m/s): drawn per seed where a scenario's conflict sweeps it (NCAP)."""
+
+
+def dynamics_digest(episode: Episode | Any) -> str:
+    """Hash of what an episode did: its actions, its final state and whether the ego made contact.
+
+    Registered results go stale on it (and on the figures each shows), never on the whole scored record: a
+    field added to `EpisodeResult` changes no episode. Takes an `Episode` or anything with its ``actions``,
+    ``final_ground_truth`` and ``result`` (`crossing_eval`'s records).
+    """
+    gt = episode.final_ground_truth
+    digest = hashlib.sha256(json.dumps(list(episode.actions)).encode())
+    state = (
+        gt.time,
+        gt.ego_position,
+        gt.ego_velocity,
+        gt.pedestrian_positions,
+        gt.pedestrian_velocities,
+        gt.pedestrian_states,
+        gt.vehicle_positions,
+        float(bool(episode.result["collision"])),
+    )
+    for value in state:
+        digest.update(np.ascontiguousarray(np.asarray(value, dtype=np.float64)).tobytes())
+    return digest.hexdigest()
 
 
 def slot_ids(env: gym.Env) -> np.ndarray:

@@ -247,7 +247,7 @@ def _censored(records: list[Any]) -> np.ndarray:
     )
 
 
-def _scores(records: list[Any]) -> dict[str, float]:
+def scores(records: list[Any]) -> dict[str, float]:
     """Collisions, compliance and censored delay of a list of records."""
     from crossing_eval.statistics import censored_delay
 
@@ -285,7 +285,7 @@ def steps_to_safety(runs: Path, algo: str, seed: int, scenarios: list[str], epis
         spec = f"mlp:{(folder / f'step_{n}.policy.npz').resolve()}"
         records = _evaluate([spec], todo, episodes, SELECTION_SEED, workers)
         for s in todo:
-            sc = _scores([r for r in records if r.task.scenario == s])
+            sc = scores([r for r in records if r.task.scenario == s])
             ref = reference[s]
             ok_compliance = np.isnan(ref["compliance"]) or sc["compliance"] >= ref["compliance"] - 1e-9
             if sc["collisions"] <= ref["collisions"] and ok_compliance:
@@ -335,7 +335,7 @@ def analyse(
 
     # Yielding on the selection episodes: the safety reference of steps-to-safety.
     yield_sel = _evaluate(["yielding"], scenarios, safety_episodes, SELECTION_SEED, workers)
-    reference = {s: _scores([r for r in yield_sel if r.task.scenario == s]) for s in scenarios}
+    reference = {s: scores([r for r in yield_sel if r.task.scenario == s]) for s in scenarios}
     result: dict[str, Any] = {
         "recipe": list(RECIPE),
         "learner_recipe": {k: list(v) for k, v in LEARNER_RECIPE.items()},
@@ -351,7 +351,7 @@ def analyse(
         for seed in SEEDS:
             first = steps_to_safety(runs, algo, seed, scenarios, safety_episodes, workers, reference)
             final = f"mlp:{(runs / algo / f'seed_{seed}' / 'model.policy.npz').resolve()}"
-            sel = _scores(_evaluate([final], scenarios, check_episodes, SELECTION_SEED, workers))
+            sel = scores(_evaluate([final], scenarios, check_episodes, SELECTION_SEED, workers))
             train_s = float(_read_episodes(runs / algo / f"seed_{seed}" / "episodes.csv")["wall_s"].max())
             per_seed[seed] = {"steps_to_safety": first, "selection": sel, "train_wall_s": train_s}
         best = min(
@@ -366,9 +366,9 @@ def analyse(
     specs = ["yielding", *learned, SHIELD_MAX]
     records = _evaluate(specs, scenarios, episodes, EVALUATION_SEED, workers)
     by_spec = {s: [r for r in records if r.task.policy == s] for s in specs}
-    evaluation = {"yielding": _scores(by_spec["yielding"])}
+    evaluation = {"yielding": scores(by_spec["yielding"])}
     for algo, spec in zip((*ALGOS, "shield_max"), specs[1:], strict=True):
-        evaluation[algo] = _scores(by_spec[spec])
+        evaluation[algo] = scores(by_spec[spec])
         evaluation[algo]["delay_vs_yielding"] = paired_delay_difference(by_spec[spec], by_spec["yielding"])
     result["evaluation"] = evaluation
     return result

@@ -125,7 +125,7 @@ def _at_yielding(records: list[Any], reference: dict[str, dict[str, float]]) -> 
     """Scenarios where `records` have no more collisions than `yielding` and at least its compliance."""
     n = 0
     for scenario, ref in reference.items():
-        sc = safe_rl._scores([r for r in records if r.task.scenario == scenario])
+        sc = safe_rl.scores([r for r in records if r.task.scenario == scenario])
         compliant = np.isnan(ref["compliance"]) or sc["compliance"] >= ref["compliance"] - 1e-9
         n += int(sc["collisions"] <= ref["collisions"] and bool(compliant))
     return n
@@ -151,8 +151,8 @@ def checkpoints(
 ) -> dict[str, Any]:
     """Greedy scores of every checkpoint of every run, and `yielding`'s on the same episodes."""
     ref_records = safe_rl._evaluate(["yielding"], scenarios, episodes, safe_rl.SELECTION_SEED, workers)
-    reference = {s: safe_rl._scores([r for r in ref_records if r.task.scenario == s]) for s in scenarios}
-    out: dict[str, Any] = {"yielding": {**safe_rl._scores(ref_records), "cost": mean_cost(ref_records)}}
+    reference = {s: safe_rl.scores([r for r in ref_records if r.task.scenario == s]) for s in scenarios}
+    out: dict[str, Any] = {"yielding": {**safe_rl.scores(ref_records), "cost": mean_cost(ref_records)}}
     out["budgets"] = {}
     for budget in BUDGETS:
         per_seed = {}
@@ -164,7 +164,7 @@ def checkpoints(
                 spec = f"mlp:{(folder / f'step_{n}.policy.npz').resolve()}"
                 records = safe_rl._evaluate([spec], scenarios, episodes, safe_rl.SELECTION_SEED, workers)
                 rows[str(n)] = {
-                    **safe_rl._scores(records),
+                    **safe_rl.scores(records),
                     "cost": mean_cost(records),
                     "scenarios_at_yielding": _at_yielding(records, reference),
                 }

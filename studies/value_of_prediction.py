@@ -61,8 +61,9 @@ FINGERPRINT_STEPS = 150
 def _probe_digest(intention: str, predictor: str) -> str:
     """Hash of short `predictive_yielding` rollouts under one pair of wrappers (`probe_scenarios`)."""
     from crossing_eval.tasks import episode_seed
+    from crossing_eval.value_v2 import episode_figures
     from predictors.learned_intent_weights import WEIGHTS_PATH
-    from rollout import RolloutSpec, run_spec
+    from rollout import RolloutSpec, dynamics_digest, run_spec
 
     digest = hashlib.sha256(f"{intention}/{predictor}".encode())
     if intention in WEIGHTS_INTENTIONS:
@@ -81,8 +82,8 @@ def _probe_digest(intention: str, predictor: str) -> str:
     for scenario in probe_scenarios(predictor):
         spec = RolloutSpec(scenario=scenario, policy=POLICY, intention=intention, predictor=predictor)
         episode = run_spec(spec, episode_seed(BASE_SEED, scenario, 0), FINGERPRINT_STEPS)
-        digest.update(json.dumps(episode.actions).encode())
-        digest.update(json.dumps(episode.result, sort_keys=True, default=str).encode())
+        digest.update(dynamics_digest(episode).encode())
+        digest.update(json.dumps(episode_figures(episode.result, scenario), sort_keys=True).encode())
     return digest.hexdigest()
 
 
