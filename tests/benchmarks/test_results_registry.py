@@ -232,10 +232,32 @@ def test_what_the_episodes_do_moves_every_simulated_entry() -> None:
     """A different action in one episode (the world or a policy changed) makes every simulated entry
     stale, the speed and memory scripts included."""
     records = list(results.fingerprint_records())
-    first = records[0]
-    records[0] = dataclasses.replace(first, actions=[*first.actions[:-1], first.actions[-1] + 0.5])
+    k = next(i for i, r in enumerate(records) if r.task.scenario == "busy_zebra")  # in every entry's set
+    actions = records[k].actions
+    records[k] = dataclasses.replace(records[k], actions=[*actions[:-1], actions[-1] + 0.5])
     before, after = _fingerprints(results.fingerprint_records()), _fingerprints(records)
     assert all(after[name] != before[name] for name in SIMULATED)
+
+
+def test_a_new_scenario_stales_only_the_entries_that_run_every_scenario() -> None:
+    """A new built-in scenario (its fingerprint episodes added) moves the entries that run every
+    built-in scenario (the default table, discrimination, safe RL) and leaves the scripts that run their
+    own worlds (the default road, crowds, two zebras) current."""
+    records = list(results.fingerprint_records())
+    without = [r for r in records if r.task.scenario != "ncap_cpnc"]  # as if ncap_cpnc were new
+    before, after = _fingerprints(without), _fingerprints(records)
+    moved = {name for name in SIMULATED if after[name] != before[name]}
+    every = {name for name in SIMULATED if results.ENTRIES[name].scenarios is None}
+    assert {"default_table", "discrimination", "safe_rl", "eval_throughput"} <= every
+    assert {"env_throughput", "soak", "world_health", "sim_transfer"}.isdisjoint(every)
+    assert moved == every
+
+
+def test_every_named_scenario_is_built_in() -> None:
+    from scenarios import list_scenarios
+
+    for name in SIMULATED:
+        assert set(results.ENTRIES[name].scenarios or ()) <= set(list_scenarios()), name
 
 
 def test_the_value_study_stamps_its_figures_not_the_whole_record() -> None:
