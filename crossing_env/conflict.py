@@ -56,6 +56,9 @@ class ConflictPlan:
     """Centre x of the occluding parked vehicle, when it was moved (m)."""
     radius: float
     """The pedestrian's body radius (m)."""
+    along_speed: float = 0.0
+    """Its velocity along the road once released (m/s, signed in x): 0 for a pedestrian who crosses, the
+    walking speed the ego's way for one walking ahead in its lane ('ahead', Euro NCAP CPLA)."""
 
 
 def _uniform(rng: np.random.Generator, bounds: tuple[float, ...], default: float) -> float:
@@ -85,13 +88,17 @@ def draw_plan(scenario: ScenarioConfig, geometry: RoadGeometry, rng: np.random.G
     # dummy moves at its speed from the first step.
     lag = 0.0 if c.dummy else scenario.pedestrians.social_force.relaxation_time
     south, north = geometry.walkway_bounds
-    if side == "near":  # walks north, from the south sidewalk (or the parking strip in front of it)
+    along = 0.0
+    if side == "ahead":  # stands in the ego's lane, on the car's line of impact, and walks the car's way
+        start_y = impact_y
+        along = walk * float(geometry.lane_direction[scenario.ego.lane])
+    elif side == "near":  # walks north, from the south sidewalk (or the parking strip in front of it)
         lo, hi = south + radius + WALL_CLEARANCE, geometry.kerb_south - KERB_STANDOFF
         start_y = float(np.clip(impact_y - walk * max(wanted - lag, 0.0), lo, hi))
     else:
         lo, hi = geometry.kerb_north + KERB_STANDOFF, north - radius - WALL_CLEARANCE
         start_y = float(np.clip(impact_y + walk * max(wanted - lag, 0.0), lo, hi))
-    tta = lag + abs(impact_y - start_y) / walk
+    tta = wanted if side == "ahead" else lag + abs(impact_y - start_y) / walk
     occluder_x = None
     if gap is not None:
         occluder_x = x - radius - gap - scenario.traffic.length / 2
@@ -106,6 +113,7 @@ def draw_plan(scenario: ScenarioConfig, geometry: RoadGeometry, rng: np.random.G
         time_to_arrival=float(tta),
         occluder_x=occluder_x,
         radius=float(radius),
+        along_speed=along,
     )
 
 
@@ -134,7 +142,7 @@ class ConflictScript:
         p = self.plan
         spawn = PedestrianSpawn(
             x=p.x,
-            side="south" if p.side == "near" else "north",
+            side="north" if p.side == "far" else "south",
             crossing_x=p.x,
             # The plan's speed already has the night and phone slow-downs; spawning applies them again.
             desired_speed=p.pedestrian_speed
@@ -172,6 +180,8 @@ class ConflictScript:
     def hold_course(self, pedestrians: PedestrianPopulation) -> None:
         """A dummy's velocity: still until released, then straight along its line at its speed.
 
+        Its line crosses the road, or runs along the ego's lane for one walking ahead.
+
         Called after `PedestrianPopulation.step` (which set everyone's velocity from the social force) and
         before the physics moves the bodies: the dummy reacts to nothing until a contact pushes it.
         """
@@ -180,6 +190,9 @@ class ConflictScript:
             return
         if self.stepped_off_at is None:
             pedestrians.velocity[i] = 0.0
+        elif self.plan.along_speed:
+            pedestrians.velocity[i, 0] = self.plan.along_speed
+            pedestrians.velocity[i, 1] = 0.0
         elif pedestrians.state[i] == CROSSING:
             towards = 1.0 if self.plan.side == "near" else -1.0  # near: walks north (+y), far: south
             pedestrians.velocity[i, 0] = 0.0

@@ -81,6 +81,9 @@ class ConflictTruth:
     """Its walking speed (m/s)."""
     radius: float
     """Its body radius (m)."""
+    along_speed: float = 0.0
+    """Its speed along the ego's direction of travel once released (m/s): 0 for a dummy crossing the road,
+    the walking speed for one walking ahead in the ego's lane (Euro NCAP CPLA)."""
 
 
 @dataclass(frozen=True)

@@ -278,6 +278,7 @@ class World:
                 start_y=plan.start_y,
                 speed=plan.pedestrian_speed,
                 radius=plan.radius,
+                along_speed=abs(plan.along_speed),
             )
         return GroundTruth(
             time=round(self.time, 9),

@@ -21,6 +21,7 @@ from agents.sb3 import ModelFileError
 from crossing_common.cli import DefaultsHelpFormatter, int_at_least, positive_float
 from crossing_common.folders import OutputFolderError, StagedFolder
 from crossing_eval.grid import GRID_MARKER, make_grid_tasks, parse_grid, write_grid_outputs
+from crossing_eval.ncap import format_ncap_table, ncap_rows
 from crossing_eval.outputs import import_plotting, write_outputs
 from crossing_eval.plugins import (
     PREDICTOR_NAMES,
@@ -398,6 +399,9 @@ def _run(
     files = write_outputs(records, summary, settings, staged.path)
     staged.commit()
     print(format_table(summary, args.policies))
+    ncap = ncap_rows(records)
+    if ncap:
+        print("\n" + format_ncap_table(ncap))
     worst = sum(f.startswith("worst/") for f in files)
     print(
         f"\n{len(records)} episodes in {wall:.1f} s ({len(records) / max(wall, 1e-9):.2f} episodes/s);"

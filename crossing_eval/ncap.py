@@ -148,8 +148,9 @@ def ncap_rows(records: Sequence[EpisodeRecord]) -> list[NcapRow]:
             outcome = _outcome(r.result)
             counts[outcome] += 1
             impact = math.nan
-            if outcome == "impact" and r.result.get("max_impact_speed") is not None:
-                impact = 3.6 * float(r.result["max_impact_speed"])
+            speed = r.result.get("ncap_impact_speed", r.result.get("max_impact_speed"))
+            if outcome == "impact" and speed is not None:
+                impact = 3.6 * float(speed)
                 speeds.append(impact)
             band = colour(test, outcome, impact)
             if band is not None:
@@ -226,7 +227,8 @@ def ncap_markdown(records: Sequence[EpisodeRecord]) -> str:
         " brown <= 10 km/h; 40: orange <= 10, brown <= 20; 50-60: yellow <= 10, orange <= 20, brown <= 30;"
         " else red; outrun is red), counted as G/Y/O/B/R over the tested episodes; points = their mean"
         " (green 1, yellow 0.75, orange 0.5, brown 0.25, red 0); NeuroNCAP = mean of 5 without a collision,"
-        " else 4 x max(0, 1 - impact speed / test speed). Impact speed = mean car speed at contact.",
+        " else 4 x max(0, 1 - impact speed / test speed). Impact speed = mean relative impact speed: the"
+        " car's speed at contact less the dummy's along the car's heading (0 for a crossing dummy).",
         "",
         "| scenario | policy | test km/h | episodes | avoided | outrun | impact | not tested | avoided (of"
         " tested) | G/Y/O/B/R | points | NeuroNCAP | impact km/h |",
@@ -241,3 +243,39 @@ def ncap_markdown(records: Sequence[EpisodeRecord]) -> str:
             f" | {_fmt(row.points)} | {_fmt(row.neuro_ncap)} | {_fmt(row.impact_kmh, 1)} |"
         )
     return "\n".join(lines) + "\n"
+
+
+def format_ncap_table(rows: Sequence[NcapRow]) -> str:
+    """The printed NCAP table: one line per scenario, policy and test speed, Euro NCAP's colours counted."""
+    header = ["scenario", "policy", "km/h", "n", "avoid/outrun/impact/untested", "G/Y/O/B/R", "points"]
+    header += ["NeuroNCAP", "impact km/h"]
+    table = [header]
+    for row in rows:
+        c = row.counts
+        table.append(
+            [
+                row.scenario,
+                row.policy,
+                str(row.test_kmh),
+                str(row.episodes),
+                f"{c['avoided']}/{c['outrun']}/{c['impact']}/{c['not tested']}",
+                "/".join(str(row.colours[k]) for k in COLOURS),
+                _fmt(row.points),
+                _fmt(row.neuro_ncap),
+                _fmt(row.impact_kmh, 1),
+            ]
+        )
+    widths = [max(len(r[i]) for r in table) for i in range(len(header))]
+    lines = [
+        "  ".join(
+            cell.ljust(w) if j < 2 else cell.rjust(w)
+            for j, (cell, w) in enumerate(zip(r, widths, strict=True))
+        )
+        for r in table
+    ]
+    lines.insert(1, "  ".join("-" * w for w in widths))
+    lines.append(
+        "NCAP: Euro NCAP 2026 colours per test speed (G/Y/O/B/R over the tested episodes; points green 1 ..."
+        " red 0); outrun is red; impact speed relative to the dummy; definitions in report.md."
+    )
+    return "\n".join(lines)

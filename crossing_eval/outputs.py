@@ -78,6 +78,7 @@ CSV_EPISODE_FIELDS = (
     "yield_violations",
     "yield_unresolved",
     "ncap_outcome",
+    "ncap_impact_speed",
     "passed_crossing",
     "delay",
     "time_to_pass",

@@ -18,7 +18,7 @@ from crossing_common.cadence import HISTORY_INTERVAL
 
 CrossingKind = Literal["zebra", "signalised", "none"]
 PhaseDistribution = Literal["classical", "uniform", "normal"]
-ConflictSide = Literal["near", "far", "either"]
+ConflictSide = Literal["near", "far", "either", "ahead"]
 
 
 @dataclass(frozen=True)
@@ -304,7 +304,9 @@ class ConflictConfig:
 
     side: ConflictSide = "near"
     """Sidewalk the pedestrian steps off from: 'near' (the ego's kerb, south), 'far' (across the road) or
-    'either' (drawn per episode, even odds)."""
+    'either' (drawn per episode, even odds); or 'ahead': it stands in the ego's lane at the conflict point
+    (its centre at `impact_offset` of the car's width) and, released, walks the ego's way along the lane
+    (Euro NCAP CPLA; a test dummy only)."""
     x_offset: tuple[float, ...] = (0.0, 0.0)
     """Range of the conflict point along the road relative to `crossing.position` (m; + is further on)."""
     ego_speed: tuple[float, ...] = (8.3, 13.9)

@@ -221,6 +221,23 @@ def _bystander_problems(cfg: ScenarioConfig) -> list[Problem]:
     return out
 
 
+def _conflict_problems(cfg: ScenarioConfig) -> list[Problem]:
+    """A pedestrian walking ahead in the ego's lane is a test dummy.
+
+    The social force walks people off the road, and nothing else keeps one on its line.
+    """
+    conflict = cfg.conflict
+    if conflict is not None and conflict.side == "ahead" and not conflict.dummy:
+        return [
+            Problem(
+                "conflict.dummy",
+                conflict.dummy,
+                "must be true when conflict.side is 'ahead' (only a test dummy walks along the car's lane)",
+            )
+        ]
+    return []
+
+
 _CROSS_FIELD_CHECKS = (
     _crossing_problems,
     _ego_problems,
@@ -228,6 +245,7 @@ _CROSS_FIELD_CHECKS = (
     _overlap_problems,
     _pedestrian_problems,
     _bystander_problems,
+    _conflict_problems,
 )
 
 

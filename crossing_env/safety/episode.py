@@ -130,6 +130,7 @@ class EpisodeMetrics:
         # a timed conflict's test dummy (NCAP outcome)
         self._dummy: ConflictTruth | None = None
         self._dummy_hit = False
+        self._dummy_impact = math.nan
         self._path_clear_time = math.nan
         self._ego_y = math.nan
         self._ego_width = math.nan
@@ -256,7 +257,15 @@ class EpisodeMetrics:
         for ev in gt.collisions:
             if ev.kind == "pedestrian":
                 self._ped_collisions += 1
-                self._dummy_hit |= self._dummy is not None and ev.other_id == self._dummy.pedestrian_id
+                if (
+                    self._dummy is not None
+                    and ev.other_id == self._dummy.pedestrian_id
+                    and not self._dummy_hit
+                ):
+                    # Euro NCAP's relative impact speed: the car's, less the dummy's along the car's heading
+                    # (a crossing dummy's longitudinal speed is taken as 0).
+                    self._dummy_hit = True
+                    self._dummy_impact = max(float(ev.car_speed) - dummy.along_speed, 0.0)
                 self._ped_at_fault += bool(ev.at_fault)
                 self._compliant_collisions += bool(ev.compliant)
                 if not ev.car_speed <= self._max_impact:  # also replaces the initial nan
@@ -496,6 +505,7 @@ class EpisodeMetrics:
             static_collisions=self._static_collisions,
             yield_unresolved=unresolved,
             ncap_outcome=self._ncap_outcome(),
+            ncap_impact_speed=self._dummy_impact,
         )
 
     def _ncap_outcome(self) -> str:
@@ -507,6 +517,8 @@ class EpisodeMetrics:
             return "impact"
         if math.isnan(d.released_at):
             return "not tested"
+        if d.along_speed > 0.0:  # it walks ahead within the car's width: no car gets past it untouched
+            return "avoided"
         # When the dummy's body, on its fixed path at its fixed speed, reaches the car's side of its lane.
         reach_y = self._ego_width / 2 + d.radius
         gap = max(abs(d.start_y - self._ego_y) - reach_y, 0.0)

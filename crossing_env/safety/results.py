@@ -78,6 +78,7 @@ config, so checking that both use the same thresholds is an identity test)."""
 # Fields added later, with defaults: older logs without them still load.
 _OPTIONAL_FIELDS = frozenset(
     {
+        "ncap_impact_speed",
         "stops",
         "unneeded_stops",
         "max_speed_over_limit",
@@ -208,6 +209,10 @@ class EpisodeResult:
     dummy), 'outrun' (no contact, but the ego's rear cleared the dummy's path less than
     `MetricsConfig.outrun_margin` before the dummy reached the car's side: it got away by speed),
     'not tested' (the dummy was never released: the car never came near) or 'avoided'; '' otherwise."""
+    ncap_impact_speed: float = math.nan
+    """Impact speed with the test dummy as Euro NCAP scores it (m/s): the ego's speed at the first contact
+    less the dummy's speed along the ego's heading (0 for a dummy crossing the road, so the car's speed;
+    the walker's 1.39 m/s in CPLA); nan without a contact with a dummy."""
     yield_unresolved: int = 0
     """Obligations still open when the episode ended (the pedestrian had not cleared the ego's half and the
     ego had not entered the conflict area): counted among the obligations, not as compliant."""

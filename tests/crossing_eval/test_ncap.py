@@ -3,13 +3,14 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from agents.policy import FunctionPolicy
 from crossing_env.conflict import RELEASE_DISTANCE
-from crossing_eval.ncap import POINTS, colour, ncap_markdown, ncap_rows, neuro_ncap
+from crossing_eval.ncap import POINTS, colour, format_ncap_table, ncap_markdown, ncap_rows, neuro_ncap
 from crossing_eval.tasks import EpisodeRecord, EpisodeTask, episode_seed, run_episode
 from rollout.build import RolloutSpec, build
 from rollout.episode import run_episode as run_rollout
@@ -113,7 +114,7 @@ def _outcomes(scenario: str, action: float | None, policy: str = "constant_speed
         run.env.close()
 
 
-@pytest.mark.parametrize("scenario", ["ncap_cpna", "ncap_cpfa", "ncap_cpnc"])
+@pytest.mark.parametrize("scenario", ["ncap_cpna", "ncap_cpfa", "ncap_cpnc", "ncap_cpla"])
 def test_episode_outcomes_of_careless_careful_and_absent_cars(scenario: str) -> None:
     assert set(_outcomes(scenario, None)) == {"impact"}  # holds its speed: hits the dummy
     assert set(_outcomes(scenario, None, policy="yielding")) == {"avoided"}
@@ -152,7 +153,7 @@ def test_records_carry_the_drawn_test_speed() -> None:
     assert speeds <= grid and len(speeds) >= 3  # one grid speed drawn per seed
 
 
-@pytest.mark.parametrize("scenario", ["ncap_cpna", "ncap_cpfa", "ncap_cpnc"])
+@pytest.mark.parametrize("scenario", ["ncap_cpna", "ncap_cpfa", "ncap_cpnc", "ncap_cpla"])
 def test_a_car_that_stands_far_back_is_not_tested_and_never_avoids(scenario: str) -> None:
     """Braking to a stand at once: more than 60 m from the dummy's path it is never released (not tested);
     closer, a car that stands for a second gives the dummy the way (the conflict's release rule)."""
@@ -166,3 +167,66 @@ def test_a_car_that_stands_far_back_is_not_tested_and_never_avoids(scenario: str
         assert (result["ncap_outcome"] == "not tested") == far
         assert result["ncap_outcome"] in {"not tested", "avoided"}
     run.env.close()
+
+
+NCAP_SCENARIOS = ("ncap_cpna", "ncap_cpfa", "ncap_cpnc", "ncap_cpla")
+
+
+@pytest.mark.parametrize("scenario", NCAP_SCENARIOS)
+def test_yielding_is_green_and_holding_speed_red_at_every_test_speed(scenario: str) -> None:
+    """Stopping is physically possible at every test speed of the grid once the dummy gives itself away
+    (docs/evaluation.md derives each scenario's limit: 77 km/h or more), so a careful car is green at each;
+    one that holds its speed is red at 30 km/h and above (at 10-20 km/h only full avoidance counts, and it
+    hits there too)."""
+    import dataclasses
+
+    cfg = load_scenario(scenario)
+    for v in cfg.conflict.ego_speed_grid:
+        fixed = dataclasses.replace(cfg, conflict=dataclasses.replace(cfg.conflict, ego_speed_grid=(v,)))
+        kmh = round(v * 3.6)
+        for policy, expected in (("yielding", "green"), ("constant_speed", "red")):
+            run = build(RolloutSpec(scenario=fixed, policy=policy))
+            try:
+                for k in range(2):
+                    seed = episode_seed(4242, scenario, k)
+                    result = run_rollout(run.env, seed, policy=run.policy).result
+                    speed = result["ncap_impact_speed"]
+                    impact = math.nan if speed is None else 3.6 * speed
+                    got = colour(kmh, result["ncap_outcome"], impact)
+                    assert got == expected, f"{scenario} {policy} at {kmh} km/h, seed {seed}: {got}"
+            finally:
+                run.env.close()
+
+
+def test_the_printed_table_has_a_line_per_test_speed_and_the_relative_impact_speed() -> None:
+    records = [
+        _record("ncap_cpla", "constant_speed", 20 / 3.6, 20 / 3.6),
+        _record("ncap_cpla", "yielding", 20 / 3.6, None),
+    ]
+    records[0].result["ncap_impact_speed"] = 15 / 3.6  # 20 km/h less the walker's 5: the scored speed
+    text = format_ncap_table(ncap_rows(records))
+    lines = text.splitlines()
+    assert lines[0].split()[:3] == ["scenario", "policy", "km/h"] and set(lines[1]) <= {"-", " "}
+    assert lines[2].split() == ["ncap_cpla", "constant_speed", "20", "1", "0/0/1/0", "0/0/0/0/1", "0.00",
+                                "1.00", "15.0"]  # fmt: skip
+    assert lines[3].split() == [
+        "ncap_cpla",
+        "yielding",
+        "20",
+        "1",
+        "1/0/0/0",
+        "1/0/0/0/0",
+        "1.00",
+        "5.00",
+        "-",
+    ]
+
+
+def test_crossing_eval_prints_the_ncap_table(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from crossing_eval.cli import main
+
+    args = ["--scenarios", "ncap_cpla,zebra_case1", "--policies", "constant_speed", "--episodes", "1"]
+    assert main([*args, "--workers", "1", "--no-progress", "--out", str(tmp_path / "run")]) == 0
+    out = capsys.readouterr().out
+    assert "avoid/outrun/impact/untested" in out and "\nncap_cpla  constant_speed" in out
+    assert "zebra_case1  constant" not in out  # only the NCAP scenarios have rows

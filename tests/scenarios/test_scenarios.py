@@ -236,6 +236,12 @@ def test_name_defaults_to_file_stem(tmp_path: Path) -> None:
             "overlaps ego",
         ),
         (
+            "[conflict]\nside = 'ahead'\n",
+            "conflict.dummy",
+            "False",
+            "must be true when conflict.side is 'ahead'",
+        ),
+        (
             "[[traffic.spawns]]\nlane = 0\nx = 99.0\nspeed = 5.0\nparked = true\n",
             "traffic.spawns[0].speed",
             "5.0",
