@@ -129,8 +129,8 @@ class EpisodeMetrics:
         self._static_collisions = 0
         # a timed conflict's test dummy (NCAP outcome)
         self._dummy: ConflictTruth | None = None
-        self._dummy_hit = False
         self._dummy_impact = math.nan
+        """Relative impact speed of the first contact with the test dummy (nan: no contact)."""
         self._path_clear_time = math.nan
         self._ego_y = math.nan
         self._ego_width = math.nan
@@ -260,12 +260,11 @@ class EpisodeMetrics:
                 if (
                     self._dummy is not None
                     and ev.other_id == self._dummy.pedestrian_id
-                    and not self._dummy_hit
+                    and math.isnan(self._dummy_impact)
                 ):
                     # Euro NCAP's relative impact speed: the car's, less the dummy's along the car's heading
                     # (a crossing dummy's longitudinal speed is taken as 0).
-                    self._dummy_hit = True
-                    self._dummy_impact = max(float(ev.car_speed) - dummy.along_speed, 0.0)
+                    self._dummy_impact = max(float(ev.car_speed) - self._dummy.along_speed, 0.0)
                 self._ped_at_fault += bool(ev.at_fault)
                 self._compliant_collisions += bool(ev.compliant)
                 if not ev.car_speed <= self._max_impact:  # also replaces the initial nan
@@ -513,7 +512,7 @@ class EpisodeMetrics:
         d = self._dummy
         if d is None:
             return ""
-        if self._dummy_hit:
+        if not math.isnan(self._dummy_impact):
             return "impact"
         if math.isnan(d.released_at):
             return "not tested"
