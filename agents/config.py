@@ -230,3 +230,29 @@ class HighwayRuleConfig(DrivingConfig):
     """Speed-controller gain (1/s) towards a target speed of 0 when yielding (highway-env: KP_A = 1/0.6)."""
     lateral_margin: float = 0.0
     """Margin (m) added to the footprints in the collision check."""
+
+
+@dataclass(frozen=True)
+class AdversaryConfig(DrivingConfig):
+    """Parameters of the adversaries (`agents.adversaries`): lazy or reckless drivers no score may reward."""
+
+    crawl_speed: float = 2.0
+    """Speed (m/s) at which `crawl` drives the whole road."""
+    far_stop_distance: float = 70.0
+    """How far (m) before the stop line `stop_far` stops for good."""
+    stop_deceleration: float = 3.0
+    """Deceleration (m/s²) with which the stopping adversaries plan their stop."""
+    stop_gain: float = 2.0
+    """Gain (1/s) pulling the speed down onto the braking profile sqrt(2·b·s)."""
+    stop_time: float = 2.0
+    """How long (s) `stop_and_go` stands at the stop line before it drives on, whoever is there."""
+    dt: float = 0.1
+    """Time between calls (s), the env's `EnvConfig.dt` (`stop_and_go`'s timer)."""
+
+
+@dataclass(frozen=True)
+class BrakeLateConfig(TTCBrakeConfig):
+    """Parameters of `brake_late`: it holds its speed and brakes fully only below a short TTC."""
+
+    ttc_threshold: float = 1.0
+    """Full braking when the time to collision with a pedestrian falls below this (s)."""

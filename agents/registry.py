@@ -28,8 +28,11 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
 
+from agents.adversaries import BrakeLate, Crawl, FullThrottle, StopAndGo, StopFar, StopNear
 from agents.baselines import ConstantSpeed, HighwayEnvRule, TTCEmergencyBrake
 from agents.config import (
+    AdversaryConfig,
+    BrakeLateConfig,
     CautiousConfig,
     ConstantSpeedConfig,
     DrivingConfig,
@@ -83,6 +86,17 @@ BUILTIN_POLICIES: tuple[str, ...] = tuple(_REGISTRY)
 POLICIES: tuple[str, ...] = (*BUILTIN_POLICIES, DEFAULT_LEARNED)
 """The default table of `crossing-eval`: the rule-based policies and the default shipped learned policy."""
 _REGISTRY["constant"] = PolicyEntry(ConstantAction, None, uses_predictors=False)
+_REGISTRY.update(
+    {
+        "full_throttle": PolicyEntry(FullThrottle, AdversaryConfig),
+        "crawl": PolicyEntry(Crawl, AdversaryConfig),
+        "stop_far": PolicyEntry(StopFar, AdversaryConfig),
+        "stop_near": PolicyEntry(StopNear, AdversaryConfig),
+        "brake_late": PolicyEntry(BrakeLate, BrakeLateConfig),
+        "stop_and_go": PolicyEntry(StopAndGo, AdversaryConfig),
+    }
+)
+"""The adversary suite (`agents.adversaries.ADVERSARIES`, with ``random``): not in the table."""
 _REGISTRY["random"] = PolicyEntry(RandomAction, None, uses_predictors=False)
 """Trivial ones for replays and smoke runs (action 0; uniform from the episode seed); not in the table."""
 

@@ -147,6 +147,7 @@ class EpisodeMetrics:
         self._min_sep = _INF
         self._min_sep_veh = _INF
         self._clearance_time = 0.0
+        self._near_miss = 0.0
         self._max_drac_cross = 0.0
         self._max_drac_follow = 0.0
         # PET
@@ -346,6 +347,8 @@ class EpisodeMetrics:
                 self._min_sep = min_sep
             if min_sep < cfg.clearance:
                 self._clearance_time += dt
+            if min_sep < cfg.near_miss_distance and speed > 0.0:
+                self._update_near_miss(gt, half, speed)
             # TTC: exact box–disc, only while the ego moves.
             if speed > cfg.ttc_min_ego_speed:
                 min_ttc = shared.min_ttc if shared is not None else min_pedestrian_ttc(gt, cfg, half)
@@ -388,6 +391,18 @@ class EpisodeMetrics:
             self._yield.state = shared.yield_after
         else:
             self._yield.update(gt, ego_in)
+
+    def _update_near_miss(self, gt: GroundTruth, half: np.ndarray, speed: float) -> None:
+        """Proximity × speed of the closest pedestrian on the road (`EpisodeResult.near_miss`)."""
+        cfg = self.config
+        on_road = gt.on_road
+        if not np.count_nonzero(on_road):
+            return
+        sep = min_pedestrian_separation(gt, half, on_road)
+        proximity = min(max(1.0 - sep / cfg.near_miss_distance, 0.0), 1.0)
+        severity = proximity * min(speed / cfg.near_miss_speed, 1.0)
+        if severity > self._near_miss:
+            self._near_miss = severity
 
     def _update_pet(
         self,
@@ -505,6 +520,8 @@ class EpisodeMetrics:
             yield_unresolved=unresolved,
             ncap_outcome=self._ncap_outcome(),
             ncap_impact_speed=self._dummy_impact,
+            near_miss=self._near_miss,
+            target_time=self._reach_time,
         )
 
     def _ncap_outcome(self) -> str:

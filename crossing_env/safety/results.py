@@ -69,6 +69,12 @@ class MetricsConfig:
     """Pedestrians within this distance (m) of the crossing along the road can be the reason for a stop."""
     stop_attribution_lateral: float = 3.0
     """... and within this distance (m) of a kerb, on the sidewalk."""
+    near_miss_distance: float = 2.0
+    """A pedestrian on the road closer than this (m) to the ego footprint makes a near miss
+    (`EpisodeResult.near_miss`): its proximity rises linearly from 0 here to 1 at contact."""
+    near_miss_speed: float = 50.0 / 3.6
+    """Ego speed (m/s) at which a near miss counts in full (50 km/h, the urban limit); slower passes count
+    in proportion, so a car creeping past a pedestrian is not a near miss however close."""
 
 
 DEFAULT_METRICS = MetricsConfig()
@@ -88,6 +94,8 @@ _OPTIONAL_FIELDS = frozenset(
         "static_collisions",
         "yield_unresolved",
         "ncap_outcome",
+        "near_miss",
+        "target_time",
     }
 )
 
@@ -216,6 +224,13 @@ class EpisodeResult:
     yield_unresolved: int = 0
     """Obligations still open when the episode ended (the pedestrian had not cleared the ego's half and the
     ego had not entered the conflict area): counted among the obligations, not as compliant."""
+    near_miss: float = 0.0
+    """Worst near miss in [0, 1]: the largest, over steps and pedestrians on the road, of proximity (1 at
+    contact, 0 at `MetricsConfig.near_miss_distance`) × the ego's speed over `near_miss_speed` (capped at
+    1). A pass at 0.01 m and 72 km/h is 1; one at 1 m and 10 km/h is 0.1; 0 if none came close."""
+    target_time: float = math.nan
+    """Time (s) at which the ego reached the delay target (`delay` adds the free-flow time to it); nan if
+    not reached. The episode score's progress compares it with a reference driver's."""
 
     @property
     def yield_compliance(self) -> float:

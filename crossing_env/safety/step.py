@@ -33,12 +33,15 @@ COST_TERMS: tuple[str, ...] = ("collision", "failing_to_yield", "near_miss")
 """Keys of `step_costs` (and of the env's ``info["costs"]``), in order; ``info["cost"]`` is their sum."""
 
 
-def min_pedestrian_separation(gt: GroundTruth, half: np.ndarray) -> float:
+def min_pedestrian_separation(gt: GroundTruth, half: np.ndarray, among: np.ndarray | None = None) -> float:
     """Minimum edge-to-edge distance from the ego box (half extents `half`) to any pedestrian disc (m).
 
-    Negative when overlapping (minus the penetration depth); inf without pedestrians.
+    Negative when overlapping (minus the penetration depth); inf without pedestrians. `among`: a boolean
+    mask of the pedestrians to consider (all when None).
     """
-    return _min_separation(gt.ego_position, half, gt.pedestrian_positions, gt.pedestrian_radii)
+    if among is None:
+        return _min_separation(gt.ego_position, half, gt.pedestrian_positions, gt.pedestrian_radii)
+    return _min_separation(gt.ego_position, half, gt.pedestrian_positions[among], gt.pedestrian_radii[among])
 
 
 def _min_separation(ego: np.ndarray, half: np.ndarray, positions: np.ndarray, radii: np.ndarray) -> float:
