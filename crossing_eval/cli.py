@@ -43,6 +43,7 @@ from crossing_eval.runners import (
     pool_start_method,
     run_tasks,
 )
+from crossing_eval.scoring import REFERENCE_POLICY, reference_tasks
 from crossing_eval.summary import format_table, summarise
 from crossing_eval.tasks import EpisodeRecord, EpisodeTask, cached_env, make_tasks
 from rollout import build_policy
@@ -285,6 +286,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ScenarioError as exc:
         return _fail(str(exc))
     tasks = _tasks(args)
+    if args.grid is None:
+        tasks += reference_tasks(tasks)  # the careful driver on every seed: the score's progress gate
     try:
         _preflight(args, tasks)
     except (WrapperError, ModelFileError, ValueError, TypeError, OSError) as exc:
@@ -360,10 +363,12 @@ def _run(
             where = f"{workers} worker(s) ({method})"
         else:
             workers, where = 1, "in this process (fewer episodes than a worker pool's start-up is worth)"
+    extra = sum(t.policy not in args.policies for t in tasks)
+    reference = f" + {extra} of the reference driver ({REFERENCE_POLICY}, for the score)" if extra else ""
     print(
         f"{prefix}{len(args.scenarios)} scenario(s) x"
-        f" {len(args.policies)} policies x {args.episodes} episode(s) = {len(tasks)} episodes,"
-        f" {where}, backend {args.backend}",
+        f" {len(args.policies)} policies x {args.episodes} episode(s) = {len(tasks) - extra} episodes"
+        f"{reference}, {where}, backend {args.backend}",
         file=sys.stderr,
     )
     t0 = time.perf_counter()
@@ -393,10 +398,13 @@ def _run(
         print(table)
         print(f"{len(records)} episodes in {wall:.1f} s; wrote {', '.join(files)} to {args.out}/")
         return 0
-    summary = summarise(records)
+    ran = len(records)
+    references = [r for r in records if r.task.policy not in args.policies]
+    records = [r for r in records if r.task.policy in args.policies]
+    summary = summarise(records, references)
     settings = _settings(args, records)
     settings["scenario_names"] = labels
-    files = write_outputs(records, summary, settings, staged.path)
+    files = write_outputs(records, summary, settings, staged.path, references)
     staged.commit()
     print(format_table(summary, args.policies))
     ncap = ncap_rows(records)
@@ -404,7 +412,7 @@ def _run(
         print("\n" + format_ncap_table(ncap))
     worst = sum(f.startswith("worst/") for f in files)
     print(
-        f"\n{len(records)} episodes in {wall:.1f} s ({len(records) / max(wall, 1e-9):.2f} episodes/s);"
+        f"\n{ran} episodes in {wall:.1f} s ({ran / max(wall, 1e-9):.2f} episodes/s);"
         f" wrote {', '.join(f for f in files if not f.startswith('worst/'))} and {worst} worst-episode"
         f" log(s) to {args.out}/"
     )

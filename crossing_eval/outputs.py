@@ -84,8 +84,11 @@ CSV_EPISODE_FIELDS = (
     "time_to_pass",
     "distance_travelled",
     "duration",
+    "near_miss",
+    "target_time",
+    "score",
 )
-"""Columns of ``episodes.csv``: the task's four, then `EpisodeResult` fields."""
+"""Columns of ``episodes.csv``: the task's four, then `EpisodeResult` fields, then the episode's score."""
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -101,25 +104,35 @@ def _csv_text(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
     return buf.getvalue()
 
 
+def _episode_entry(r: EpisodeRecord, settings: dict[str, Any]) -> dict[str, Any]:
+    """One record as ``results.json`` holds it (``score`` only where the record was scored)."""
+    entry = {
+        "scenario": r.task.scenario,
+        "scenario_name": settings.get("scenario_names", {}).get(r.task.scenario, r.task.scenario),
+        "policy": r.task.policy,
+        "episode": r.task.episode,
+        "seed": r.task.seed,
+        "predictors": r.predictors,
+        "initial_speed": json_safe(r.initial_speed),
+        "metrics": r.result,
+    }
+    if r.score is not None:
+        entry["score"] = json_safe(r.score)
+    return entry
+
+
 def _write_results_json(
-    records: Sequence[EpisodeRecord], summary: dict[str, Any], settings: dict[str, Any], out: Path
+    records: Sequence[EpisodeRecord],
+    summary: dict[str, Any],
+    settings: dict[str, Any],
+    out: Path,
+    references: Sequence[EpisodeRecord] = (),
 ) -> None:
     doc = {
         "settings": settings,
         "summary": json_safe(summary),
-        "episodes": [
-            {
-                "scenario": r.task.scenario,
-                "scenario_name": settings.get("scenario_names", {}).get(r.task.scenario, r.task.scenario),
-                "policy": r.task.policy,
-                "episode": r.task.episode,
-                "seed": r.task.seed,
-                "predictors": r.predictors,
-                "initial_speed": json_safe(r.initial_speed),
-                "metrics": r.result,
-            }
-            for r in records
-        ],
+        "episodes": [_episode_entry(r, settings) for r in records],
+        "reference_episodes": [_episode_entry(r, settings) for r in references],
     }
     write_bytes_atomic(
         out / "results.json", (json.dumps(doc, indent=1, sort_keys=True) + "\n").encode("utf-8")
@@ -133,7 +146,8 @@ def _write_episodes_csv(records: Sequence[EpisodeRecord], out: Path) -> None:
             r.task.policy,
             r.task.episode,
             r.task.seed,
-            *(csv_cell(r.result[f]) for f in CSV_EPISODE_FIELDS[4:]),
+            *(csv_cell(r.result[f]) for f in CSV_EPISODE_FIELDS[4:-1]),
+            csv_cell(r.score["score"] if r.score is not None else None),
         ]
         for r in records
     ]
@@ -412,17 +426,22 @@ def save_worst(records: Sequence[EpisodeRecord], out: Path, n: int = WORST_EPISO
 
 
 def write_outputs(
-    records: Sequence[EpisodeRecord], summary: dict[str, Any], settings: dict[str, Any], out: Path
+    records: Sequence[EpisodeRecord],
+    summary: dict[str, Any],
+    settings: dict[str, Any],
+    out: Path,
+    references: Sequence[EpisodeRecord] = (),
 ) -> list[str]:
     """JSON, CSVs, report, table, plots and worst-episode logs; every file written atomically.
 
     `out` is normally the staging folder of `crossing_common.folders.StagedFolder`, swapped in whole by
-    the caller. Returns the file names.
+    the caller. `references`: the reference driver's episodes the run added to score its seeds
+    (``results.json`` keeps them apart, so that every score can be recomputed). Returns the file names.
     """
     out.mkdir(parents=True, exist_ok=True)
     policies = settings["policies"]
     labels = settings.get("scenario_names") or scenario_labels(sorted({r.task.scenario for r in records}))
-    _write_results_json(records, summary, settings, out)
+    _write_results_json(records, summary, settings, out, references)
     _write_episodes_csv(records, out)
     _write_summary_csv(summary, policies, out)
     header, rows = per_scenario_rows(summary, labels, policies)

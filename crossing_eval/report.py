@@ -13,11 +13,12 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from crossing_eval.summary import TABLE_COLUMNS, _row, format_world_health
+from crossing_eval.summary import TABLE_COLUMNS, _row, by_score, format_world_health
 from scenarios import load_scenario
 
 SCENARIO_CSV_FIELDS = (
     "episodes",
+    "score_mean",
     "collision_rate",
     "pedestrian_collision_rate",
     "pedestrian_at_fault_collision_rate",
@@ -108,7 +109,7 @@ def report_markdown(
     `extra_sections` (markdown, e.g. the NCAP-style scoring) goes after the world-health line.
     """
     header = [c.header for c in TABLE_COLUMNS]
-    per_policy = [_row(p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]]
+    per_policy = [_row(p, summary["per_policy"][p]) for p in by_score(policies, summary["per_policy"])]
     used = ", ".join(settings.get("predictors_used") or []) or "none"
     parts = [
         "# crossing-eval report",
@@ -116,17 +117,18 @@ def report_markdown(
         f"{settings.get('episodes')} episode(s) per scenario and policy, base seed {settings.get('seed')},"
         f" predictor {settings.get('predictor')}, intention {settings.get('intention')} (for the policies"
         f" that read predictions); wrappers that actually ran: {used}.",
-        "One row per policy; no row pools different policies. The columns are defined at the end"
-        " ('-' = undefined).",
+        "One row per policy, best mean score first; no row pools different policies. The columns are"
+        " defined at the end ('-' = undefined).",
         "",
         "## Per policy, all scenarios of the run",
         "",
         _markdown(header, per_policy),
     ]
-    by_scenario: dict[str, list[list[str]]] = {}
+    by_scenario: dict[str, dict[str, Any]] = {}
     for scenario, policy, agg in _pairs(summary, labels, policies):
-        by_scenario.setdefault(scenario, []).append(_row(policy, agg))
-    for scenario, rows in by_scenario.items():
+        by_scenario.setdefault(scenario, {})[policy] = agg
+    for scenario, aggs in by_scenario.items():
+        rows = [_row(p, aggs[p]) for p in by_score(list(aggs), aggs)]
         parts += ["", f"## {scenario}", "", _markdown(header, rows)]
     parts += ["", "## World health", "", format_world_health(summary) + "."]
     if extra_sections:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from crossing_env.safety import DEFAULT_METRICS, EpisodeResult
+from crossing_eval.scoring import attach_scores, mean_interval
 from crossing_eval.statistics import aggregate, censored_delay
 from crossing_eval.tasks import EpisodeRecord
 from scenarios import load_scenario
@@ -35,6 +36,14 @@ class Column:
 TABLE_COLUMNS: tuple[Column, ...] = (
     Column("policy", None, "The policy (one row each; rows never pool policies)."),
     Column("n", "episodes", "Episodes run (scenarios x episodes per scenario)."),
+    Column(
+        "score [95% CI]",
+        None,
+        "Mean episode score in [0, 1] with its 95% Student-t interval: gates for an at-fault collision, a"
+        " broken or open yield obligation, too little progress against the careful reference driver"
+        " (yielding) on the same seed and a near miss at speed, times a weighted mean of progress, TTC,"
+        " speed limit and comfort (docs/results.md, 'The score'). Rows are sorted by it.",
+    ),
     Column(
         "collision rate [95% CI]",
         None,
@@ -132,22 +141,28 @@ TABLE_COLUMNS: tuple[Column, ...] = (
 """The table's columns, in order (the same in the printed table, ``table.txt`` and ``report.md``)."""
 
 
-def summarise(records: Sequence[EpisodeRecord]) -> dict[str, Any]:
+def summarise(records: Sequence[EpisodeRecord], references: Sequence[EpisodeRecord] = ()) -> dict[str, Any]:
     """Per policy and per (scenario, policy) aggregates, and the world-health figures.
 
     Each aggregate (`crossing_eval.statistics.aggregate`) also holds the censored delay
     (`crossing_eval.statistics.censored_delay`): episodes that never pass count at their scenario's
-    duration. ``world_health`` holds the background-contact figures over every episode of the run.
+    duration; and the episode score's mean and interval (``score_mean``, ``score_ci95``). Records not
+    scored yet are scored here against the reference driver's episodes among `records` and `references`
+    (`crossing_eval.scoring.attach_scores`; it raises when a seed's reference is missing). ``world_health``
+    holds the background-contact figures over every episode of the run.
     """
+    unscored = [r for r in records if r.score is None]
+    if unscored:
+        attach_scores(unscored, [*records, *references])
     horizons = {s: load_scenario(s).duration for s in {r.task.scenario for r in records}}
     results = [EpisodeResult.from_dict(r.result) for r in records]
     by_policy: dict[str, list[Any]] = {}
     by_pair: dict[str, list[Any]] = {}
     for rec, res in zip(records, results, strict=True):
-        by_policy.setdefault(rec.task.policy, []).append((res, horizons[rec.task.scenario]))
-        by_pair.setdefault(f"{rec.task.scenario}/{rec.task.policy}", []).append(
-            (res, horizons[rec.task.scenario])
-        )
+        assert rec.score is not None  # attached above
+        entry = (res, horizons[rec.task.scenario], rec.score["score"])
+        by_policy.setdefault(rec.task.policy, []).append(entry)
+        by_pair.setdefault(f"{rec.task.scenario}/{rec.task.policy}", []).append(entry)
     every = aggregate(results)
     return {
         "per_policy": {k: _aggregate(v) for k, v in by_policy.items()},
@@ -156,15 +171,23 @@ def summarise(records: Sequence[EpisodeRecord]) -> dict[str, Any]:
     }
 
 
-def _aggregate(pairs: Sequence[tuple[EpisodeResult, float]]) -> dict[str, Any]:
-    results = [r for r, _ in pairs]
+def _aggregate(entries: Sequence[tuple[EpisodeResult, float, float]]) -> dict[str, Any]:
+    results = [r for r, _, _ in entries]
     agg = aggregate(results)
     agg.update(
         censored_delay(
-            [r.delay for r in results], [r.passed_crossing for r in results], [h for _, h in pairs]
+            [r.delay for r in results], [r.passed_crossing for r in results], [h for _, h, _ in entries]
         )
     )
+    mean, lo, hi = mean_interval([s for _, _, s in entries])
+    agg["score_mean"], agg["score_ci95"] = mean, (lo, hi)
     return agg
+
+
+def by_score(policies: Sequence[str], aggregates: dict[str, Any]) -> list[str]:
+    """`policies` that have an aggregate, best mean score first (ties keep the given order)."""
+    present = [p for p in policies if p in aggregates]
+    return sorted(present, key=lambda p: -aggregates[p]["score_mean"])
 
 
 def _fmt(x: Any, digits: int = 2) -> str:
@@ -192,9 +215,11 @@ def _row(name: str, agg: dict[str, Any]) -> list[str]:
     sep = f"{_fmt(agg['min_separation_min'])}{mark}/{_fmt(agg['min_separation_p50'])}"
     # A close pass marks the TTC too: "-" (never on a collision course) or a long TTC is no all-clear.
     ttc = f"{_fmt(agg['min_ttc_p5'])}/{_fmt(agg['min_ttc_p50'])}{mark}"
+    s_lo, s_hi = agg["score_ci95"]
     return [
         name,
         str(agg["episodes"]),
+        f"{agg['score_mean']:.3f} [{s_lo:.3f}, {s_hi:.3f}]",
         f"{agg['collision_rate']:.3f} [{lo:.3f}, {hi:.3f}]",
         f"{agg['pedestrian_at_fault_collision_rate']:.3f}",
         f"{agg['vehicle_at_fault_collision_rate']:.3f}",
@@ -213,9 +238,10 @@ def _row(name: str, agg: dict[str, Any]) -> list[str]:
 
 
 def format_table(summary: dict[str, Any], policies: Sequence[str]) -> str:
-    """Fixed-width text table, one row per policy (all scenarios of the run), then two notes."""
+    """Fixed-width text table, one row per policy (all scenarios of the run), best score first, two notes."""
     rows = [[c.header for c in TABLE_COLUMNS]]
-    entries = [(p, summary["per_policy"][p]) for p in policies if p in summary["per_policy"]]
+    per_policy = summary["per_policy"]
+    entries = [(p, per_policy[p]) for p in by_score(policies, per_policy)]
     rows.extend(_row(name, agg) for name, agg in entries)
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     lines = []

@@ -65,6 +65,9 @@ class EpisodeRecord:
     """Sum of the env's rewards over the episode (`info['rewards']` terms)."""
     initial_speed: float = float("nan")
     """The ego's speed after reset (m/s); the NCAP-style table bins episodes by it."""
+    score: dict[str, float] | None = None
+    """The episode's score and its terms (`crossing_env.safety.score.EpisodeScore.as_dict`), set by
+    `crossing_eval.scoring.attach_scores` once the reference driver's episode on the same seed is in."""
 
     @property
     def key(self) -> tuple[str, str, int]:

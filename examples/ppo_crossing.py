@@ -499,13 +499,15 @@ def evaluate(name: str, scenarios: tuple[str, ...], episodes: int, workers: int 
     """`crossing-eval`'s episodes (same seeds, same code) for policy spec `name`; metrics plus mean return."""
     from crossing_eval.plugins import policy_spec
     from crossing_eval.runners import run_tasks
+    from crossing_eval.scoring import reference_tasks
     from crossing_eval.summary import summarise
     from crossing_eval.tasks import make_tasks
 
     policy_spec(name)  # fails early with a clear message
     tasks = make_tasks(list(scenarios), [name], episodes, 2024)
-    records = run_tasks(tasks, workers, "local", None, show_progress=False)
-    summary = summarise(records)
+    ran = run_tasks(tasks + reference_tasks(tasks), workers, "local", None, show_progress=False)
+    records = [r for r in ran if r.task.policy == name]
+    summary = summarise(records, [r for r in ran if r.task.policy != name])  # the score's reference
     returns = [r.episode_return for r in records]
     return {"summary": summary, "records": records, "mean_return": float(np.nanmean(returns))}
 

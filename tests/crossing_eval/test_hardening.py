@@ -67,9 +67,12 @@ def test_interrupted_write_leaves_the_previous_results(first_run: Path, tmp_path
     out.mkdir()
     (out / "results.json").write_text('{"old": true}')
     write_marker(out, "crossing-eval")
-    records = run_tasks([EpisodeTask("zebra_case1", "constant_speed", 0, 1)], show_progress=False)
+    records = run_tasks(
+        [EpisodeTask("zebra_case1", "constant_speed", 0, 1), EpisodeTask("zebra_case1", "yielding", 0, 1)],
+        show_progress=False,
+    )
 
-    def write_then_interrupt(records, summary, settings, folder):
+    def write_then_interrupt(records, summary, settings, folder, references):
         (folder / "results.json").write_text("{}")
         raise KeyboardInterrupt
 

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scipy import stats
 
 import crossing_eval.cli as cli
 from scenarios import BUILTIN_DIR
@@ -92,6 +93,8 @@ def schema_paths(value: Any, path: str = "") -> set[str]:
         for key, item in value.items():
             if path in MAPS:
                 child = f"{path}.{MAPS[path]}"
+            elif path == "reference_episodes[]":  # the keys of `episodes[]`, documented there
+                child = f"episodes[].{key}"
             elif path in AGGREGATES:
                 child = f"<aggregate>.{key}"
             else:
@@ -204,9 +207,43 @@ def share_below(eps: Sequence[Episode], key: str, limit: float) -> float:
     return share(eps, lambda m: m[key] is not None and m[key] < limit)
 
 
+def score_of(m: dict[str, Any], ref: dict[str, Any]) -> float:
+    """An episode's score from its metrics and the reference's, as docs/results.md ("The score") says."""
+
+    def progress(x: dict[str, Any]) -> float:
+        if not x["passed_crossing"]:
+            return 0.0
+        return min(1.0, (x["target_time"] - x["delay"]) / x["target_time"])
+
+    if ref["passed_crossing"]:
+        gate = progress(m) >= 0.2 * progress(ref)
+    elif m["passed_crossing"] or ref["distance_travelled"] < 5.0:
+        gate = True
+    else:
+        gate = m["distance_travelled"] >= 0.2 * ref["distance_travelled"]
+    ped = 0.0 if m["pedestrian_collisions_at_fault"] else 1.0
+    veh = 0.0 if m["vehicle_collisions_at_fault"] else 0.5 if m["static_collisions"] else 1.0
+    yld = 0.0 if m["yield_violations"] else 0.5 if m["yield_unresolved"] else 1.0
+    ttc = 1.0 if m["min_ttc"] is None else min(1.0, m["min_ttc"] / 1.5)
+    speed = max(0.0, 1.0 - m["max_speed_over_limit"] / 2.23)
+    comfort = 1.0 - min(1.0, max(0.0, (m["max_deceleration"] - 4.05) / (8.0 - 4.05)))
+    weighted = (5 * progress(m) + 5 * ttc + 4 * speed + 2 * comfort) / 16
+    return ped * veh * yld * float(gate) * (1.0 - m["near_miss"]) * weighted
+
+
+def score_interval(scores: Sequence[float]) -> tuple[float, list[float]]:
+    """Mean and its 95 % Student-t interval clipped to [0, 1], as the page says."""
+    m = float(np.mean(scores))
+    if len(scores) < 2 or float(np.std(scores)) == 0.0:
+        return m, [m, m]
+    half = stats.t.ppf(0.975, len(scores) - 1) * float(np.std(scores, ddof=1)) / math.sqrt(len(scores))
+    return m, [max(0.0, m - half), min(1.0, m + half)]
+
+
 def recompute(eps: Sequence[Episode], durations: dict[str, float]) -> dict[str, Any]:
     """Every aggregate key from the records, as docs/results.md defines it."""
     n = len(eps)
+    score_mean, score_ci95 = score_interval([e["score"]["score"] for e in eps])
     coll = sum(e["metrics"]["collision"] for e in eps)
     ped = sum(e["metrics"]["pedestrian_collisions"] > 0 for e in eps)
     ped_fault = sum(e["metrics"]["pedestrian_collisions_at_fault"] > 0 for e in eps)
@@ -224,6 +261,8 @@ def recompute(eps: Sequence[Episode], durations: dict[str, float]) -> dict[str, 
 
     return {
         "episodes": n,
+        "score_mean": score_mean,
+        "score_ci95": score_ci95,
         "collision_rate": coll / n,
         "collision_ci95": wilson(coll, n),
         "pedestrian_collision_rate": ped / n,
@@ -290,9 +329,11 @@ def row(policy: str, agg: dict[str, Any]) -> list[str]:
     close = agg["min_separation_min"] is not None and agg["min_separation_min"] < CLEARANCE
     mark = "!" if close else ""
     lo, hi = agg["collision_ci95"]
+    s_lo, s_hi = agg["score_ci95"]
     return [
         policy,
         str(agg["episodes"]),
+        f"{agg['score_mean']:.3f} [{s_lo:.3f}, {s_hi:.3f}]",
         f"{agg['collision_rate']:.3f} [{lo:.3f}, {hi:.3f}]",
         f"{agg['pedestrian_at_fault_collision_rate']:.3f}",
         f"{agg['vehicle_at_fault_collision_rate']:.3f}",
@@ -362,14 +403,30 @@ def test_every_table_cell_recomputes_from_the_episode_records(run: Path, doc: di
     durations = doc["settings"]["provenance"]["scenario_durations"]
     policies = doc["settings"]["policies"]
     by_policy, by_pair = groups(doc)
-    expected = [row(p, recompute(by_policy[p], durations)) for p in policies]
+
+    def rows(aggs: dict[str, dict[str, Any]]) -> list[list[str]]:
+        """The rows, best mean score first (ties in `settings.policies` order)."""
+        return [row(p, aggs[p]) for p in sorted(policies, key=lambda p: -aggs[p]["score_mean"])]
+
+    expected = rows({p: recompute(by_policy[p], durations) for p in policies})
     assert _table_rows((run / "table.txt").read_text()) == expected
     tables = _markdown_tables((run / "report.md").read_text())
     assert tables["Per policy, all scenarios of the run"] == expected
     names = doc["settings"]["scenario_names"]
     for scenario in doc["settings"]["scenarios"]:
-        want = [row(p, recompute(by_pair[f"{scenario}/{p}"], durations)) for p in policies]
+        want = rows({p: recompute(by_pair[f"{scenario}/{p}"], durations) for p in policies})
         assert tables[names[scenario]] == want, scenario
+
+
+def test_every_score_recomputes_from_the_metrics_and_the_reference_on_its_seed(doc: dict[str, Any]) -> None:
+    # Neither policy of the run is the reference driver: every seed's reference was added to the run.
+    refs = {(e["scenario"], e["seed"]): e["metrics"] for e in doc["reference_episodes"]}
+    assert {e["policy"] for e in doc["reference_episodes"]} == {"yielding"}
+    assert set(refs) == {(e["scenario"], e["seed"]) for e in doc["episodes"]}
+    for e in doc["episodes"]:
+        want = score_of(e["metrics"], refs[(e["scenario"], e["seed"])])
+        assert e["score"]["score"] == pytest.approx(want, rel=1e-12, abs=1e-12), (e["scenario"], e["policy"])
+        assert all(0.0 <= v <= 1.0 for v in e["score"].values())
 
 
 def test_the_world_health_line_recomputes(run: Path, doc: dict[str, Any]) -> None:

@@ -37,6 +37,16 @@ def _records(per_policy: dict[str, list[dict]]) -> list[EpisodeRecord]:
     return records
 
 
+def _summarise(records: list[EpisodeRecord]) -> dict:
+    """`summarise` with the reference driver's episode on every seed: the clean base episode."""
+    seeds = sorted({(r.task.scenario, r.task.seed) for r in records})
+    references = [
+        EpisodeRecord(EpisodeTask(sc, "yielding", seed, seed), _base().as_dict(), [], [])
+        for sc, seed in seeds
+    ]
+    return summarise(records, references)
+
+
 def _cells(table: str, policy: str) -> dict[str, str]:
     """The row of `policy` in the fixed-width table, by header (cells are separated by 2+ spaces)."""
     lines = table.splitlines()
@@ -78,7 +88,7 @@ def test_old_logs_without_the_speeding_fields_still_load():
 
 def test_no_row_pools_policies_anywhere(tmp_path: Path):
     records = _records(RECORDS)
-    summary = summarise(records)
+    summary = _summarise(records)
     assert set(summary) == {"per_policy", "per_scenario_policy", "world_health"}
     policies = list(RECORDS)
     table = format_table(summary, policies)
@@ -95,7 +105,7 @@ def test_no_row_pools_policies_anywhere(tmp_path: Path):
 
 def test_every_column_is_defined_in_the_report_with_the_censoring_rule():
     records = _records(RECORDS)
-    summary = summarise(records)
+    summary = _summarise(records)
     report = report_markdown(summary, list(RECORDS), {SCENARIO: SCENARIO}, {"episodes": 2})
     definitions = report.split("## Definitions", 1)[1]
     for column in TABLE_COLUMNS:
@@ -107,12 +117,12 @@ def test_every_column_is_defined_in_the_report_with_the_censoring_rule():
 
 
 def test_speeding_and_separation_columns():
-    table = format_table(summarise(_records(RECORDS)), list(RECORDS))
+    table = format_table(_summarise(_records(RECORDS)), list(RECORDS))
     fast = _cells(table, "plugin_fast")
     assert fast["over limit m/s"] == "6.10"
     assert fast["over limit s/ep"] == "3.00"
     assert fast["min sep m (min/p50)"] == "3.00/3.50"
-    header, rows = per_scenario_rows(summarise(_records(RECORDS)), {}, list(RECORDS))
+    header, rows = per_scenario_rows(_summarise(_records(RECORDS)), {}, list(RECORDS))
     row = dict(zip(header, next(r for r in rows if r[1] == "plugin_fast"), strict=True))
     assert row["max_speed_over_limit_max"] == pytest.approx(6.1)
     assert row["time_over_speed_limit_mean"] == pytest.approx(3.0)
@@ -121,7 +131,7 @@ def test_speeding_and_separation_columns():
 
 def test_a_close_pass_is_never_shown_as_no_conflict():
     """ttc_brake's 0.66 m pass with no collision course: the TTC cell is not a bare '-/-'."""
-    table = format_table(summarise(_records(RECORDS)), list(RECORDS))
+    table = format_table(_summarise(_records(RECORDS)), list(RECORDS))
     cells = _cells(table, "ttc_brake")
     assert cells["min sep m (min/p50)"] == f"0.66{CLOSE_MARK}/1.58"
     assert cells["minTTC p5/p50 s"] == f"-/-{CLOSE_MARK}"
@@ -137,7 +147,7 @@ def test_a_real_close_pass_from_snapshots_is_marked():
     r = m.result()
     assert r.min_ttc == math.inf and r.min_separation == pytest.approx(0.5)
     records = [EpisodeRecord(EpisodeTask(SCENARIO, "p", 0, 0), r.as_dict(), [], [])]
-    cells = _cells(format_table(summarise(records), ["p"]), "p")
+    cells = _cells(format_table(_summarise(records), ["p"]), "p")
     assert cells["minTTC p5/p50 s"].endswith(CLOSE_MARK)
 
 
@@ -160,7 +170,7 @@ def test_plots_have_no_point_labels_and_identical_curves_are_named():
         "ttc_brake": [{"min_ttc": 4.2}, {"min_ttc": math.inf}],
     }
     records = _records(twins)
-    summary = summarise(records)
+    summary = _summarise(records)
     names = list(twins)
     fig, ax = plt.subplots()
     _draw_safety_vs_efficiency(ax, summary, names)
@@ -184,7 +194,7 @@ def test_plots_drawn_in_a_child_process_are_written_and_a_failing_one_stops_the_
 
     monkeypatch.delitem(sys.modules, "torch", raising=False)  # the child is forked only without torch
     records = _records(RECORDS)
-    summary = summarise(records)
+    summary = _summarise(records)
     outputs._plot(records, summary, list(RECORDS), tmp_path)
     pngs = sorted(p.name for p in tmp_path.glob("*.png"))
     assert pngs == ["min_ttc.png", "safety_vs_efficiency.png"]
@@ -207,7 +217,7 @@ def test_after_torch_the_plots_are_drawn_here_and_a_failing_one_raises_its_own_e
 
     monkeypatch.setitem(sys.modules, "torch", types.ModuleType("torch"))
     records = _records(RECORDS)
-    summary = summarise(records)
+    summary = _summarise(records)
 
     def broken(*args: object) -> None:
         raise ValueError("cannot draw")
