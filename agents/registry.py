@@ -44,7 +44,7 @@ from agents.config import (
 from agents.policy import ConstantAction, Policy, RandomAction, as_policy
 from agents.predictive import PredictiveYielding
 from agents.yielding import AlwaysCautious, YieldingPolicy
-from scenarios.config import ScenarioConfig
+from scenarios.config import ScenarioConfig, TrafficConfig
 
 ENTRY_POINT_GROUP = "crossing_env.policies"
 """Entry-point group under which installed packages publish policies (value: ``"pkg.module:attr"``)."""
@@ -279,6 +279,25 @@ def policy_entry(name: str) -> PolicyEntry:
     raise ValueError(
         f"unknown policy {name!r}; choose from {', '.join(policy_names())},"
         " 'pkg.module:attr', 'sb3:model.zip' or 'mlp:policy.npz'"
+    )
+
+
+def blind_scenario(scenario: ScenarioConfig) -> ScenarioConfig:
+    """What a policy is told of a scenario when evaluated blind: the road, the crossing and its own car.
+
+    Kept: the road (lanes, speed limit), the crossing, the ego's limits and the cars' size, all that
+    `scenario_settings` reads, so a built-in policy drives exactly as when told everything. Dropped: the
+    name and description, the pedestrians, the background traffic, the conflict, the duration and the
+    light, which a car on a real road is not told in advance. What it sees it reads from its observation.
+    """
+    traffic = replace(TrafficConfig(), length=scenario.traffic.length, width=scenario.traffic.width)
+    return ScenarioConfig(
+        name="",
+        description="",
+        road=scenario.road,
+        crossing=scenario.crossing,
+        ego=scenario.ego,
+        traffic=traffic,
     )
 
 

@@ -25,6 +25,7 @@ Rendered blocks sit between ``<!-- results:NAME -->`` and ``<!-- /results:NAME -
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import functools
 import hashlib
 import json
@@ -140,6 +141,39 @@ def intent_weights_stamp() -> str:
     return hashlib.sha256(WEIGHTS_PATH.read_bytes()).hexdigest()[:16]
 
 
+ADVERSARY_FINGERPRINT_SCENARIOS = ("busy_zebra", "ncap_cpna")
+"""Scenarios of the adversaries' fingerprint: a crowded zebra and a pedestrian stepping out before the car."""
+
+
+@functools.cache
+def adversary_stamp() -> str:
+    """What a short rollout of each shipped adversary does (`agents.adversaries.ADVERSARIES`).
+
+    The fingerprint episodes drive `yielding` and `constant_speed` only; the adversary benchmark must also
+    go stale when an adversary drives differently.
+    """
+    from agents.adversaries import ADVERSARIES
+    from crossing_eval.tasks import episode_seed
+    from rollout import RolloutSpec, dynamics_digest, run_spec
+
+    digest = hashlib.sha256()
+    for name in ADVERSARIES:
+        for scenario in ADVERSARY_FINGERPRINT_SCENARIOS:
+            spec = RolloutSpec(scenario=scenario, policy=name)
+            episode = run_spec(spec, episode_seed(FINGERPRINT_BASE_SEED, scenario, 0), FINGERPRINT_STEPS)
+            digest.update(f"{scenario}/{name}/{dynamics_digest(episode)}".encode())
+    return digest.hexdigest()[:16]
+
+
+def score_figures(records: Sequence[Any]) -> str:
+    """Every fingerprint episode's score and terms (`crossing_eval.scoring`), `yielding` the reference."""
+    from crossing_eval.scoring import attach_scores
+
+    scored = [dataclasses.replace(r, score=None) for r in records]
+    attach_scores(scored)
+    return json.dumps({f"{r.task.scenario}/{r.task.policy}": r.score for r in scored}, sort_keys=True)
+
+
 DEFAULT_RUN_STAMPS: tuple[Callable[[], str], ...] = (learned_stamp, intent_weights_stamp)
 """What a table of `crossing-eval`'s default run depends on beyond the fingerprint episodes."""
 
@@ -223,6 +257,23 @@ def _measure_discrimination() -> dict[str, Any]:
 
 def _render_discrimination(data: dict[str, Any]) -> str:
     from benchmarks.discrimination import render_body
+
+    return render_body(data)
+
+
+def _measure_adversaries() -> dict[str, Any]:
+    """`benchmarks/adversaries.py --episodes 20` (it writes its own JSON)."""
+    subprocess.run(
+        [sys.executable, str(REPO / "benchmarks" / "adversaries.py"), "--episodes", "20", "--no-progress"],
+        check=True,
+        cwd=REPO,
+        stdout=subprocess.DEVNULL,
+    )
+    return json.loads((RESULTS_DIR / "adversaries.json").read_text(encoding="utf-8"))
+
+
+def _render_adversaries(data: dict[str, Any]) -> str:
+    from benchmarks.adversaries import render_body
 
     return render_body(data)
 
@@ -641,6 +692,15 @@ ENTRIES: dict[str, Entry] = {
             figures=table_figures,
             stamps=DEFAULT_RUN_STAMPS,
             data="default_table",
+        ),
+        Entry(
+            "adversaries",
+            "slow",
+            _measure_adversaries,
+            _render_adversaries,
+            REPO / "docs" / "evaluation.md",
+            figures=score_figures,
+            stamps=(adversary_stamp,),
         ),
         Entry(
             "discrimination",

@@ -171,6 +171,13 @@ def build_parser() -> argparse.ArgumentParser:
         " predictor=none,cvm,s-cgru,oracle on the same seeds and write value_of_prediction.md/.csv/.png"
         " (default policies: yielding,predictive_yielding)",
     )
+    parser.add_argument(
+        "--reveal-scenario",
+        action="store_true",
+        help="tell policies the whole scenario (its name, pedestrians, traffic, conflict) when they are"
+        " built; by default they are evaluated blind, told only the road, the crossing and their car"
+        " (docs/evaluation.md, 'What a policy may know')",
+    )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
 
@@ -259,6 +266,7 @@ def _settings(args: argparse.Namespace, records: Sequence[EpisodeRecord]) -> dic
         "seed": args.seed,
         "predictor": args.predictor,
         "intention": args.intention,
+        "blind": not args.reveal_scenario,
         "predictors_used": sorted({p for r in records for p in r.predictors}),
         "provenance": run_provenance(args, records),
     }
@@ -325,7 +333,15 @@ def _tasks(args: argparse.Namespace) -> list[EpisodeTask]:
     """The episodes of a plain run or of a `--grid`."""
     if args.grid is not None:
         return make_grid_tasks(args.scenarios, args.policies, args.episodes, args.seed, args.grid)
-    return make_tasks(args.scenarios, args.policies, args.episodes, args.seed, args.predictor, args.intention)
+    return make_tasks(
+        args.scenarios,
+        args.policies,
+        args.episodes,
+        args.seed,
+        args.predictor,
+        args.intention,
+        blind=not args.reveal_scenario,
+    )
 
 
 def _preflight(args: argparse.Namespace, tasks: Sequence[EpisodeTask]) -> None:
@@ -342,7 +358,7 @@ def _preflight(args: argparse.Namespace, tasks: Sequence[EpisodeTask]) -> None:
     env, _ = cached_env(scenario)
     for policy in args.policies:
         try:
-            build_policy(policy, env)
+            build_policy(policy, env, blind=not args.reveal_scenario)
         except (ValueError, TypeError, OSError) as exc:
             raise type(exc)(f"policy {policy!r} cannot be built: {exc}") from exc
 

@@ -45,6 +45,9 @@ class EpisodeTask:
     intention: str = "none"
     """Intention wrapper ('qlb', 'classical', 'none' or the privileged 'oracle'); only for policies that use
     predictors."""
+    blind: bool = True
+    """Tell the policy only the road, the crossing and its car (`agents.blind_scenario`), not the scenario's
+    name, pedestrians or conflict; `crossing-eval --reveal-scenario` sets it False."""
 
 
 @dataclass
@@ -89,6 +92,7 @@ def make_tasks(
     base_seed: int,
     predictor: str = "s-cgru",
     intention: str = "qlb",
+    blind: bool = True,
 ) -> list[EpisodeTask]:
     """The sorted task list of a run; predictor settings only go to policies that use them."""
     tasks = []
@@ -104,6 +108,7 @@ def make_tasks(
                         seed=episode_seed(base_seed, sc, ep),
                         predictor=predictor if uses else "none",
                         intention=intention if uses else "none",
+                        blind=blind,
                     )
                 )
     return sorted(tasks, key=lambda t: (t.scenario, t.policy, t.episode))
@@ -175,8 +180,8 @@ def batches(tasks: Iterable[EpisodeTask], size: int = BATCH_EPISODES) -> Iterato
         yield batch
 
 
-def _batch_key(task: EpisodeTask) -> tuple[str, str, str, str]:
-    return task.scenario, task.policy, task.predictor, task.intention
+def _batch_key(task: EpisodeTask) -> tuple[str, str, str, str, bool]:
+    return task.scenario, task.policy, task.predictor, task.intention, task.blind
 
 
 WARM_UP_STEPS = 40
@@ -204,7 +209,8 @@ def warm_up(task: EpisodeTask, steps: int = WARM_UP_STEPS) -> None:
 
     def plain_steps() -> None:
         plain, _ = cached_env(task.scenario)
-        rollout.run_episode(plain, task.seed, policy=build_policy(task.policy, plain), max_steps=steps)
+        policy = build_policy(task.policy, plain, blind=task.blind)
+        rollout.run_episode(plain, task.seed, policy=policy, max_steps=steps)
 
     aside = _kernels_to_compile(env)
     env_cold = not compile_ahead.is_cached(walk_step)  # every step calls it: it stands for the env's
@@ -224,7 +230,8 @@ def warm_up(task: EpisodeTask, steps: int = WARM_UP_STEPS) -> None:
             plain_steps()
         finally:
             child.join()  # whatever it did, the wrapped steps below compile what is still missing
-    rollout.run_episode(env, task.seed, policy=build_policy(task.policy, env), max_steps=steps)
+    policy = build_policy(task.policy, env, blind=task.blind)
+    rollout.run_episode(env, task.seed, policy=policy, max_steps=steps)
 
 
 def _kernels_to_compile(env: Any) -> Callable[[], None] | None:
@@ -266,7 +273,7 @@ def run_episode(task: EpisodeTask) -> EpisodeRecord:
         rollout.WrapperError: a predictor that cannot be loaded (never evaluated silently without it).
     """
     env, used = _cached_env(task)
-    policy = build_policy(task.policy, env)
+    policy = build_policy(task.policy, env, blind=task.blind)
     _one_torch_thread()
     return _record(task, rollout.run_episode(env, task.seed, policy=policy), used)
 
@@ -284,7 +291,7 @@ def run_batch(tasks: Sequence[EpisodeTask]) -> list[EpisodeRecord]:
     if len({_batch_key(t) for t in tasks}) > 1:
         raise ValueError("a batch holds the episodes of one scenario, policy and wrappers")
     env, used = _cached_env(tasks[0])
-    policy = build_policy(tasks[0].policy, env)
+    policy = build_policy(tasks[0].policy, env, blind=tasks[0].blind)
     if len(tasks) < 2 or not policy_is_batched(policy):
         return [run_episode(t) for t in tasks]
     envs, used = _batch_envs(tasks[0], len(tasks))

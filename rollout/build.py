@@ -16,7 +16,7 @@ from typing import Any
 import gymnasium as gym
 
 import crossing_env  # registers the env id
-from agents import Policy, make_policy, policy_uses_predictors
+from agents import Policy, blind_scenario, make_policy, policy_uses_predictors
 from rollout.episode import Episode, run_episode
 from rollout.wrappers import DEFAULT_INTENTION, DEFAULT_PREDICTOR, NONE, wrap
 from scenarios.config import EnvConfig, ScenarioConfig
@@ -91,10 +91,15 @@ def make_env(
     return wrap(gym.make(crossing_env.ENV_ID, **kwargs), intention, predictor)
 
 
-def build_policy(spec: str, env: gym.Env, **overrides: Any) -> Policy:
-    """`agents.make_policy` for the scenario and step time of `env` (its road, limits and timers)."""
+def build_policy(spec: str, env: gym.Env, *, blind: bool = False, **overrides: Any) -> Policy:
+    """`agents.make_policy` for the scenario and step time of `env` (its road, limits and timers).
+
+    `blind`: tell the policy only the road, the crossing and its car (`agents.blind_scenario`), not the
+    scenario's name, pedestrians or conflict; `crossing-eval` evaluates blind unless told otherwise.
+    """
     base = env.unwrapped
-    return make_policy(spec, scenario=base.scenario, dt=base.config.dt, **overrides)
+    scenario = blind_scenario(base.scenario) if blind else base.scenario
+    return make_policy(spec, scenario=scenario, dt=base.config.dt, **overrides)
 
 
 def build(spec: RolloutSpec) -> Rollout:
