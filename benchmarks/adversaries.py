@@ -22,7 +22,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from agents.adversaries import ADVERSARIES
 from crossing_common.files import write_text_atomic
@@ -30,6 +29,7 @@ from crossing_env.safety.score import REFERENCE_POLICY
 from crossing_eval.provenance import source_commit
 from crossing_eval.runners import default_workers, run_tasks
 from crossing_eval.scoring import attach_scores
+from crossing_eval.statistics import t_interval
 from crossing_eval.tasks import make_tasks
 from scenarios import list_scenarios
 
@@ -41,15 +41,8 @@ else in the project (the score was designed on other seeds, so it is not tuned t
 
 
 def paired_difference(adversary: list[float], reference: list[float]) -> tuple[float, float, float]:
-    """Mean of the per-episode differences and its 95 % Student-t interval (the bounds equal the mean when
-    the differences do not vary: nothing measured a spread)."""
-    d = np.asarray(adversary, dtype=np.float64) - np.asarray(reference, dtype=np.float64)
-    mean = float(d.mean())
-    sem = float(stats.sem(d)) if d.size > 1 else 0.0
-    if not sem > 1e-12:  # rounding noise of equal differences is no spread
-        return mean, mean, mean
-    lo, hi = stats.t.interval(0.95, d.size - 1, loc=mean, scale=sem)
-    return mean, float(lo), float(hi)
+    """Mean of the per-episode differences and its 95 % Student-t interval (`t_interval`)."""
+    return t_interval(np.asarray(adversary, dtype=np.float64) - np.asarray(reference, dtype=np.float64))
 
 
 def measure(scenarios: list[str], episodes: int, workers: int, progress: bool) -> dict[str, Any]:

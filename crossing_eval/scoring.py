@@ -7,14 +7,11 @@ The score (`crossing_env.safety.score`) gates progress on what the careful refer
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
-
-import numpy as np
-from scipy import stats
 
 from crossing_env.safety import EpisodeResult
 from crossing_env.safety.score import REFERENCE_POLICY, episode_score
+from crossing_eval.statistics import t_interval
 from crossing_eval.tasks import EpisodeRecord, EpisodeTask
 
 __all__ = ["REFERENCE_POLICY", "attach_scores", "mean_interval", "reference_tasks"]
@@ -51,16 +48,6 @@ def attach_scores(records: Sequence[EpisodeRecord], references: Sequence[Episode
 
 
 def mean_interval(values: Sequence[float], confidence: float = 0.95) -> tuple[float, float, float]:
-    """Mean and its Student-t interval, clipped to [0, 1] (a score's range); nan without values.
-
-    One value, or values all alike, give the mean as both bounds: nothing measured the spread.
-    """
-    x = np.asarray(values, dtype=np.float64)
-    if x.size == 0:
-        return math.nan, math.nan, math.nan
-    mean = float(x.mean())
-    sem = float(stats.sem(x)) if x.size > 1 else 0.0
-    if not sem > 0.0:
-        return mean, mean, mean
-    lo, hi = stats.t.interval(confidence, x.size - 1, loc=mean, scale=sem)
-    return mean, max(float(lo), 0.0), min(float(hi), 1.0)
+    """Mean and its Student-t interval (`statistics.t_interval`), clipped to a score's [0, 1]."""
+    mean, lo, hi = t_interval(values, confidence)
+    return mean, max(lo, 0.0), min(hi, 1.0)

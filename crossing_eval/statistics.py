@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
+from scipy import stats
 
 from crossing_env.safety import EpisodeResult, MetricsConfig
 
@@ -20,6 +21,7 @@ __all__ = [
     "censored_delay",
     "finite_percentiles",
     "newcombe_difference",
+    "t_interval",
     "wilson_interval",
 ]
 
@@ -214,3 +216,20 @@ def newcombe_difference(
     low = diff - math.sqrt((pb - lb) ** 2 + (ua - pa) ** 2)
     high = diff + math.sqrt((ub - pb) ** 2 + (pa - la) ** 2)
     return diff, max(-1.0, low), min(1.0, high)
+
+
+def t_interval(values: ArrayLike, confidence: float = 0.95) -> tuple[float, float, float]:
+    """Mean and its Student-t interval; nan without values.
+
+    One value, or values that do not vary beyond rounding, give the mean as both bounds: nothing measured
+    a spread. Used for episode scores (`crossing_eval.scoring.mean_interval`) and paired differences.
+    """
+    x = np.asarray(values, dtype=np.float64)
+    if x.size == 0:
+        return math.nan, math.nan, math.nan
+    mean = float(x.mean())
+    sem = float(stats.sem(x)) if x.size > 1 else 0.0
+    if not sem > 1e-12:
+        return mean, mean, mean
+    lo, hi = stats.t.interval(confidence, x.size - 1, loc=mean, scale=sem)
+    return mean, float(lo), float(hi)
