@@ -60,8 +60,8 @@ from agents.config import PredictiveYieldingConfig
 from agents.plans import choose_plans, score_plans
 from agents.view import ObsLike, View, braking_travel_time
 from agents.yielding import YieldingPolicy
+from predictors.forecast_wrapper import PLAN_ACCELERATIONS_KEY, PLAN_PATHS_KEY
 from predictors.learned_intent_weights import CROSSING_INTENT_BOUND_KEY
-from predictors.oracle import PLAN_ACCELERATIONS_KEY, PLAN_PATHS_KEY
 
 
 class PredictiveYielding(YieldingPolicy):

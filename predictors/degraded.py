@@ -24,22 +24,17 @@ generator, so a degraded row runs the same pedestrians as every other row of the
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 
-from crossing_env.observation import (
-    CROSSING_INTENT_KEY,
-    CROSSING_INTENTION_KEY,
-    PEDESTRIAN_TRACKS_KEY,
-    PEDESTRIANS_KEY,
-    PREDICTED_PATHS_KEY,
-    PedestrianColumn,
-)
-from predictors.oracle import PLAN_PATHS_KEY
+from predictors.forecast import Forecast, ForecastInput
+from predictors.forecast_wrapper import ForecastObservation
+from predictors.oracle import IntentOracle, PathOracle
 
-__all__ = ["FlippedIntention", "NoisyPaths", "flip_draws", "path_errors"]
+__all__ = ["FlippedIntent", "FlippedIntention", "NoisyOraclePaths", "NoisyPaths", "flip_draws", "path_errors"]
 
 _FLIP_SALT = 0x464C4950
 """Mixed into the seed of the flip draws, so they never coincide with another generator's stream."""
@@ -85,106 +80,137 @@ def path_errors(seed: int, tracks: np.ndarray, steps: np.ndarray, sigma: float, 
     return sigma * offsets.reshape(-1, 1, 2) * ramp[None, :, None]
 
 
-class FlippedIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
-    """PRIVILEGED, degraded: the oracle's intent flipped for a fraction `flip` of tracks (see the module)."""
+class FlippedIntent:
+    """PRIVILEGED, degraded forecaster: the intent oracle flipped for a fraction `flip` of tracks (module)."""
 
-    privileged: ClassVar[bool] = True
-    """Built on the ground truth: a point on the accuracy-to-value curve, never a deployable predictor."""
-
-    def __init__(self, env: gym.Env, flip: float) -> None:
-        gym.utils.RecordConstructorArgs.__init__(self, flip=flip)
-        gym.ObservationWrapper.__init__(self, env)
+    def __init__(self, flip: float, undecided: float = 0.5) -> None:
         if not 0.0 <= float(flip) <= 1.0:
             raise ValueError(f"FlippedIntention: flip must be a probability in [0, 1], got {flip}")
-        space = env.observation_space
-        if not isinstance(space, gym.spaces.Dict) or CROSSING_INTENT_KEY not in space.spaces:
-            raise ValueError("FlippedIntention wraps an env that has crossing_intent (the intention oracle)")
         self.flip = float(flip)
+        self.oracle = IntentOracle(undecided)
+        self.spec = self.oracle.spec
         self._gen: np.random.Generator | None = None
         self._key = 0
         self._draws: dict[int, float] = {}
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
-        """Reset the env and draw this episode's key (the tracks' draws follow from it)."""
+    def bind(self, env: gym.Env) -> None:
+        """Hand the oracle the env."""
+        self.oracle.bind(env)
+
+    def reset(self, seed: int | None) -> None:
+        """Draw this episode's key (the tracks' draws follow from it)."""
         self._key, self._gen = _episode_key(seed, self._gen, _FLIP_SALT)
         self._draws = {}
-        return super().reset(seed=seed, options=options)
+        self.oracle.reset(seed)
 
     def _draw(self, track: int) -> float:
         if track not in self._draws:
             self._draws[track] = _flip_draw(self._key, track)
         return self._draws[track]
 
-    def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    def forecast(self, inputs: ForecastInput) -> Forecast:
         """The oracle's intent with the flipped tracks' decided values inverted (undecided stays 0.5)."""
-        present = observation[PEDESTRIANS_KEY][:, PedestrianColumn.PRESENCE] > 0.5
-        tracks = observation[PEDESTRIAN_TRACKS_KEY]
-        result = dict(observation)
-        for key in (CROSSING_INTENT_KEY, CROSSING_INTENTION_KEY):
-            if key not in observation:
-                continue
-            value = observation[key].copy()
-            for k in np.flatnonzero(present):
-                if value[k] in (0.0, 1.0) and self._draw(int(tracks[k])) < self.flip:
+        truth = self.oracle.forecast(inputs)
+        if inputs.tracks is None:
+            raise ValueError("FlippedIntention needs the observation's pedestrian tracks")
+        values = []
+        for value in (truth.intention, truth.intent):
+            value = np.array(value, dtype=np.float32)
+            for k in np.flatnonzero(inputs.present):
+                if value[k] in (0.0, 1.0) and self._draw(int(inputs.tracks[k])) < self.flip:
                     value[k] = 1.0 - value[k]
-            result[key] = value
-        return result
+            values.append(value)
+        return replace(truth, intention=values[0], intent=values[1])
 
 
-class NoisyPaths(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
-    """PRIVILEGED, degraded: the oracle's paths with a horizon-growing error of scale `sigma` (docstring)."""
+class NoisyOraclePaths:
+    """PRIVILEGED, degraded forecaster: the path oracle with a horizon-growing error of scale `sigma`."""
 
-    privileged: ClassVar[bool] = True
-    """Built on the ground truth: a point on the accuracy-to-value curve, never a deployable predictor."""
-
-    def __init__(self, env: gym.Env, sigma: float, hold_steps: int = HOLD_STEPS) -> None:
-        gym.utils.RecordConstructorArgs.__init__(self, sigma=sigma, hold_steps=hold_steps)
-        gym.ObservationWrapper.__init__(self, env)
+    def __init__(self, sigma: float, hold_steps: int = HOLD_STEPS, **oracle: Any) -> None:
         if not (np.isfinite(sigma) and float(sigma) >= 0.0):
             raise ValueError(f"NoisyPaths: sigma must be a finite distance >= 0 (m), got {sigma}")
         if not (isinstance(hold_steps, int) and hold_steps >= 1):
             raise ValueError(f"NoisyPaths: hold_steps must be an integer >= 1, got {hold_steps!r}")
-        space = env.observation_space
-        if not isinstance(space, gym.spaces.Dict) or PREDICTED_PATHS_KEY not in space.spaces:
-            raise ValueError("NoisyPaths wraps an env that has predicted_paths (the path oracle)")
         self.sigma = float(sigma)
         self.hold_steps = hold_steps
-        self.bound = float(space.spaces[PREDICTED_PATHS_KEY].high.max())
-        steps = space.spaces[PREDICTED_PATHS_KEY].shape[1]
+        self.oracle = PathOracle(**oracle)
+        self.spec = self.oracle.spec
+        steps = self.spec.horizon
         self._ramp = (np.arange(1, steps + 1, dtype=np.float32) / steps)[:, None]  # (T, 1)
         self._gen: np.random.Generator | None = None
         self._key = 0
-        self._step = 0
         self._period = -1
         self._held: dict[int, np.ndarray] = {}
         """Each present track's error of the current hold period."""
+        self._error: np.ndarray | None = None
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Any, dict]:
-        """Reset the env, the step count and this episode's key."""
+    @property
+    def rollouts(self) -> int:
+        """Rollouts the oracle has run so far."""
+        return self.oracle.rollouts
+
+    def bind(self, env: gym.Env) -> None:
+        """Hand the oracle the env."""
+        self.oracle.bind(env)
+
+    def reset(self, seed: int | None) -> None:
+        """Reset the oracle and draw this episode's key."""
         self._key, self._gen = _episode_key(seed, self._gen, _NOISE_SALT)
-        self._step = -1  # the reset's observation is step 0
         self._period, self._held = -1, {}
-        return super().reset(seed=seed, options=options)
+        self.oracle.reset(seed)
 
-    def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """The paths of the present slots shifted by their track's error of this hold period."""
-        self._step += 1
-        present = np.flatnonzero(observation[PEDESTRIANS_KEY][:, PedestrianColumn.PRESENCE] > 0.5)
+    def _errors(self, inputs: ForecastInput) -> np.ndarray | None:
+        """(N, T, 2) error of this step's present tracks (None when nothing is shifted)."""
+        present = np.flatnonzero(inputs.present)
         if not present.size or self.sigma == 0.0:
-            return observation
-        tracks = observation[PEDESTRIAN_TRACKS_KEY]
-        period = self._step // self.hold_steps
+            return None
+        if inputs.tracks is None:
+            raise ValueError("NoisyPaths needs the observation's pedestrian tracks")
+        period = inputs.step // self.hold_steps
         if period != self._period:  # a track's error is drawn once per hold period, not once per step
             self._period, self._held = period, {}
-        offsets = np.zeros((observation[PREDICTED_PATHS_KEY].shape[0], 1, 2), np.float32)
+        offsets = np.zeros((inputs.present.shape[0], 1, 2), np.float32)
         for k in present:
-            track = int(tracks[k])
+            track = int(inputs.tracks[k])
             if track not in self._held:
                 self._held[track] = self.sigma * _path_offset(self._key, track, period)
             offsets[k, 0] = self._held[track]
-        error = offsets * self._ramp[None]  # (K, T, 2); zero in absent slots
-        result = dict(observation)
-        for key in (PREDICTED_PATHS_KEY, PLAN_PATHS_KEY):
-            if key in observation:
-                result[key] = np.clip(observation[key] + error, -self.bound, self.bound).astype(np.float32)
-        return result
+        return offsets * self._ramp[None]  # (K, T, 2); zero in absent slots
+
+    def forecast(self, inputs: ForecastInput) -> Forecast:
+        """The oracle's paths of the present slots shifted by their track's error of this hold period."""
+        truth = self.oracle.forecast(inputs)
+        self._error = self._errors(inputs)
+        if self._error is None:
+            return truth
+        return replace(truth, paths=truth.paths + self._error[:, None])
+
+    def forecast_plans(self, inputs: ForecastInput) -> np.ndarray:
+        """Each plan's true paths shifted by the same error (so plans stay comparable)."""
+        plans = self.oracle.forecast_plans(inputs)
+        return plans if self._error is None else plans + self._error[None]
+
+
+class FlippedIntention(ForecastObservation):
+    """PRIVILEGED, degraded: `FlippedIntent` in the one forecast wrapper."""
+
+    privileged: ClassVar[bool] = True
+    """Built on the ground truth: a point on the accuracy-to-value curve, never a deployable predictor."""
+
+    def __init__(self, env: gym.Env, flip: float) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self, flip=flip)
+        super().__init__(env, FlippedIntent(flip), f"oracle-flip={flip:g}")
+        self.flip = float(flip)
+
+
+class NoisyPaths(ForecastObservation):
+    """PRIVILEGED, degraded: `NoisyOraclePaths` in the one forecast wrapper."""
+
+    privileged: ClassVar[bool] = True
+    """Built on the ground truth: a point on the accuracy-to-value curve, never a deployable predictor."""
+
+    def __init__(self, env: gym.Env, sigma: float, hold_steps: int = HOLD_STEPS, **oracle: Any) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self, sigma=sigma, hold_steps=hold_steps, **oracle)
+        super().__init__(env, NoisyOraclePaths(sigma, hold_steps, **oracle), f"oracle-noise={sigma:g}")
+        self.sigma = float(sigma)
+        self.hold_steps = hold_steps

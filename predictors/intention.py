@@ -48,7 +48,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Literal, NamedTuple
+from typing import Literal, NamedTuple
 
 import gymnasium as gym
 import numpy as np
@@ -57,8 +57,6 @@ from numba import njit
 
 from crossing_common import compile_ahead
 from crossing_env.observation import (
-    CROSSING_INTENT_KEY,
-    CROSSING_INTENTION_KEY,
     EGO_KEY,
     PEDESTRIANS_KEY,
     VEHICLES_KEY,
@@ -67,24 +65,20 @@ from crossing_env.observation import (
     VehicleColumn,
 )
 from crossing_env.pedestrians.quantum import disjunction_probabilities
-from predictors.learned_intent_weights import (
-    CROSSING_INTENT_BOUND_KEY,
-    platt,
-    release_threshold,
-    shipped_weights,
-    with_intent_keys,
-)
+from predictors.forecast import Forecast, ForecastInput, ForecastSpec, SceneGeometry
+from predictors.forecast_wrapper import ForecastObservation
+from predictors.learned_intent_weights import platt, release_threshold, shipped_weights
 
 __all__ = [
     "INTENT_HORIZON",
     "ClassicalIntention",
     "CrossingIntention",
     "IntentionConfig",
+    "IntentionModel",
     "QLBIntention",
     "crossing_intention",
     "look_probability",
     "look_rate_table",
-    "map_from_env",
 ]
 
 Variant = Literal["qlb", "cbm"]
@@ -147,47 +141,6 @@ def _lognormal_quantiles(mean: float, std: float, floor: float, n: int) -> np.nd
     return np.maximum(floor, np.exp(mu + sigma * z))
 
 
-@dataclass(frozen=True)
-class RoadMap:
-    """Static map facts relative to the ego's lane (what an HD map gives a car)."""
-
-    kerb_low: float
-    """y of the south kerb minus the ego's y."""
-    kerb_high: float
-    """y of the north kerb minus the ego's y."""
-    ego_length: float
-    """Ego length (m)."""
-    crossing_offset: float
-    """Added to the observed distance_to_stop_line to give the crossing centre's x relative to the ego."""
-    crossing_half_width: float
-    """Half the crossing width along x (m)."""
-    signalised: bool
-    """The crossing has a pedestrian signal."""
-    has_crossing: bool
-    """There is a marked crossing."""
-
-
-def map_from_env(env: gym.Env) -> RoadMap:
-    """The static map facts of the env's scenario, relative to the ego's lane."""
-    scenario = getattr(env.unwrapped, "scenario", None)
-    if scenario is None:
-        raise ValueError(
-            "crossing intention needs a crossing_env env (env.unwrapped.scenario) for the static map"
-        )
-    road, crossing = scenario.road, scenario.crossing
-    ego_y = (scenario.ego.lane + 0.5) * road.lane_width
-    length = scenario.traffic.length
-    return RoadMap(
-        kerb_low=-ego_y,
-        kerb_high=road.num_lanes * road.lane_width - ego_y,
-        ego_length=length,
-        crossing_offset=crossing.stop_line_offset + crossing.width / 2 + length / 2,
-        crossing_half_width=crossing.width / 2,
-        signalised=crossing.kind == "signalised",
-        has_crossing=crossing.kind != "none",
-    )
-
-
 GAP_GRID = np.linspace(0.0, 40.0, 4001)
 """Gaps (s) at which the look rate is tabulated; beyond 40 s the belief is 1 to within 1e-20."""
 
@@ -223,7 +176,7 @@ def look_rate_table(variant: Variant, config: IntentionConfig, factor: float = 1
 def crossing_intention(
     obs: dict[str, np.ndarray],
     horizon: float,
-    road_map: RoadMap,
+    road_map: SceneGeometry,
     config: IntentionConfig,
     rate_table: np.ndarray,
     red_rate_table: np.ndarray,
@@ -267,7 +220,7 @@ class _IntentionParts(NamedTuple):
 
 def _intention_parts(
     obs: dict[str, np.ndarray],
-    road_map: RoadMap,
+    road_map: SceneGeometry,
     config: IntentionConfig,
     rate_table: np.ndarray,
     red_rate_table: np.ndarray,
@@ -468,27 +421,80 @@ def compile_parts_kernel() -> None:
         EGO_KEY: np.zeros(len(EgoColumn), dtype=np.float32),
     }
     table = np.zeros_like(GAP_GRID)
-    _intention_parts(obs, RoadMap(-1.0, 1.0, 4.0, 0.0, 1.0, False, True), IntentionConfig(), table, table)
+    _intention_parts(
+        obs, SceneGeometry(-1.0, 1.0, 4.0, 0.0, 1.0, False, True), IntentionConfig(), table, table
+    )
 
 
-class RoadMapWrapper(gym.ObservationWrapper):
-    """An observation wrapper that reads the static road map (`map_from_env`), refreshed at every reset."""
+class IntentionModel:
+    """Forecaster of ``crossing_intention`` and ``crossing_intent`` (the module docstring's model).
 
-    _map: RoadMap
+    ``crossing_intent`` is calibrated with the shipped Platt coefficients.
 
-    def reset(
-        self, *, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[Any, dict[str, Any]]:
-        """Reset the env and refresh the static map (``options={"scenario": ...}`` may change it)."""
-        obs, info = self.env.reset(seed=seed, options=options)
-        self._map = map_from_env(self.env)
-        return self.observation(obs), info
+    Args:
+        horizon: Seconds ahead.
+        variant: ``"qlb"`` (quantum-like) or ``"cbm"`` (classical Bayesian model).
+        config: Model parameters; defaults to `IntentionConfig()`.
+    """
+
+    def __init__(
+        self, horizon: float = 2.0, variant: Variant = "qlb", config: IntentionConfig | None = None
+    ) -> None:
+        if not (math.isfinite(horizon) and horizon > 0.0):
+            raise ValueError(f"crossing intention: horizon must be > 0 seconds, got {horizon}")
+        if variant not in ("qlb", "cbm"):
+            raise ValueError(f"crossing intention: variant must be 'qlb' or 'cbm', got {variant!r}")
+        self.horizon = float(horizon)
+        self.variant: Variant = variant
+        self.config = config or IntentionConfig()
+        self.spec = ForecastSpec(paths=False, intent=True, intent_bound=True)
+        self._rates = look_rate_table(variant, self.config)
+        self._red_rates = look_rate_table(variant, self.config, self.config.red_light_prior)
+        self._calibration = tuple(shipped_weights()["calibration"][variant])
+        self._bound = release_threshold("qlb" if variant == "qlb" else "classical")
+
+    def reset(self, seed: int | None) -> None:
+        """Nothing to reset: the estimate is a function of the current observation."""
+
+    def forecast(self, inputs: ForecastInput) -> Forecast:
+        """Both intent probabilities of every slot (0 for absent slots)."""
+        if inputs.scene is None:
+            raise ValueError(
+                "crossing intention needs a crossing_env env (env.unwrapped.scenario) for the map"
+            )
+        # Both outputs share everything but the horizon (computed once: the forecaster runs every step).
+        parts = _intention_parts(inputs.observation, inputs.scene, self.config, self._rates, self._red_rates)
+        raw = _probability(parts, INTENT_HORIZON, False, self.config)
+        return Forecast(
+            intention=_probability(parts, self.horizon, True, self.config),
+            intent=(platt(raw, self._calibration) * inputs.present).astype(np.float32),
+            intent_bound=self._bound,
+        )
+
+    def kernel_to_compile(self) -> Callable[[], None] | None:
+        """A call that compiles this model's kernel, where numba's on-disk cache lacks it (else None).
+
+        `crossing_eval.tasks.warm_up` compiles it in a second process, beside the trajectory predictor's,
+        while the env's kernels compile in the first.
+        """
+        return None if parts_kernel_is_cached() else compile_parts_kernel
 
 
-class CrossingIntention(RoadMapWrapper, gym.utils.RecordConstructorArgs):
-    """Add ``crossing_intention`` and ``crossing_intent`` (K,) to a crossing_env Dict observation.
+def _check_space(env: gym.Env) -> None:
+    space = env.observation_space
+    needed = {PEDESTRIANS_KEY, VEHICLES_KEY, EGO_KEY}
+    if not isinstance(space, spaces.Dict) or not needed <= set(space.spaces):
+        raise ValueError(
+            f"crossing intention needs a Dict observation with pedestrians/vehicles/ego, got {space}"
+        )
+    if getattr(env.unwrapped, "scenario", None) is None:
+        raise ValueError(
+            "crossing intention needs a crossing_env env (env.unwrapped.scenario) for the static map"
+        )
 
-    See the module docstring; ``crossing_intent`` is calibrated with the shipped Platt coefficients.
+
+class CrossingIntention(ForecastObservation):
+    """Add ``crossing_intention`` and ``crossing_intent`` (K,): an `IntentionModel` in the one wrapper.
 
     Args:
         env: A ``crossing_env/Crossing-v0`` env (possibly wrapped).
@@ -505,47 +511,12 @@ class CrossingIntention(RoadMapWrapper, gym.utils.RecordConstructorArgs):
         config: IntentionConfig | None = None,
     ) -> None:
         gym.utils.RecordConstructorArgs.__init__(self, horizon=horizon, variant=variant, config=config)
-        gym.ObservationWrapper.__init__(self, env)
-        if not (math.isfinite(horizon) and horizon > 0.0):
-            raise ValueError(f"crossing intention: horizon must be > 0 seconds, got {horizon}")
-        if variant not in ("qlb", "cbm"):
-            raise ValueError(f"crossing intention: variant must be 'qlb' or 'cbm', got {variant!r}")
-        space = env.observation_space
-        needed = {PEDESTRIANS_KEY, VEHICLES_KEY, EGO_KEY}
-        if not isinstance(space, spaces.Dict) or not needed <= set(space.spaces):
-            raise ValueError(
-                f"crossing intention needs a Dict observation with pedestrians/vehicles/ego, got {space}"
-            )
-        self.horizon = float(horizon)
+        model = IntentionModel(horizon, variant, config)
+        _check_space(env)
+        super().__init__(env, model, "qlb" if variant == "qlb" else "classical")
+        self.horizon = model.horizon
         self.variant: Variant = variant
-        self.config = config or IntentionConfig()
-        self._rates = look_rate_table(variant, self.config)
-        self._red_rates = look_rate_table(variant, self.config, self.config.red_light_prior)
-        self._map = map_from_env(env)
-        self._calibration = tuple(shipped_weights()["calibration"][variant])
-        bound = release_threshold("qlb" if variant == "qlb" else "classical")
-        self._bound = np.array([bound], dtype=np.float32)
-        self.observation_space = with_intent_keys(space)
-
-    def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """The observation with ``crossing_intention`` and ``crossing_intent`` added."""
-        out = dict(observation)
-        # Both outputs share everything but the horizon (computed once: the wrapper runs every step).
-        parts = _intention_parts(observation, self._map, self.config, self._rates, self._red_rates)
-        out[CROSSING_INTENTION_KEY] = _probability(parts, self.horizon, True, self.config)
-        raw = _probability(parts, INTENT_HORIZON, False, self.config)
-        present = observation[PEDESTRIANS_KEY][:, PedestrianColumn.PRESENCE] > 0.5
-        out[CROSSING_INTENT_KEY] = (platt(raw, self._calibration) * present).astype(np.float32)
-        out[CROSSING_INTENT_BOUND_KEY] = self._bound.copy()
-        return out
-
-    def kernel_to_compile(self) -> Callable[[], None] | None:
-        """A call that compiles this wrapper's kernel, where numba's on-disk cache lacks it (else None).
-
-        `crossing_eval.tasks.warm_up` compiles it in a second process, beside the trajectory predictor's,
-        while the env's kernels compile in the first.
-        """
-        return None if parts_kernel_is_cached() else compile_parts_kernel
+        self.config = model.config
 
 
 class QLBIntention(CrossingIntention):

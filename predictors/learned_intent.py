@@ -25,8 +25,6 @@ import numpy as np
 from gymnasium import spaces
 
 from crossing_env.observation import (
-    CROSSING_INTENT_KEY,
-    CROSSING_INTENTION_KEY,
     EGO_KEY,
     HISTORY_INTERVAL,
     PEDESTRIAN_HISTORY_KEY,
@@ -37,15 +35,12 @@ from crossing_env.observation import (
     PointColumn,
     VehicleColumn,
 )
-from predictors.intention import INTENT_HORIZON, RoadMap, RoadMapWrapper, map_from_env
-from predictors.learned_intent_weights import (
-    CROSSING_INTENT_BOUND_KEY,
-    release_threshold,
-    shipped_weights,
-    with_intent_keys,
-)
+from predictors.forecast import Forecast, ForecastInput, ForecastSpec, SceneGeometry
+from predictors.forecast_wrapper import ForecastObservation
+from predictors.intention import INTENT_HORIZON
+from predictors.learned_intent_weights import release_threshold, shipped_weights
 
-__all__ = ["FEATURES", "HEADS", "LearnedIntention", "intent_features", "predict"]
+__all__ = ["FEATURES", "HEADS", "LearnedIntent", "LearnedIntention", "intent_features", "predict"]
 
 FEATURES: tuple[str, ...] = (
     "kerb_offset",
@@ -80,7 +75,7 @@ CAP = 10.0
 """Times (s) and distances (m) in the features are clipped to this."""
 
 
-def intent_features(obs: dict[str, np.ndarray], road_map: RoadMap) -> np.ndarray:
+def intent_features(obs: dict[str, np.ndarray], road_map: SceneGeometry) -> np.ndarray:
     """(K, len(FEATURES)) float64 features of every pedestrian slot (zeros for absent slots).
 
     Columns: signed distance outside the nearer kerb (m, negative on the road), within 1.5 m of the kerb
@@ -171,8 +166,48 @@ def predict(features: np.ndarray, head: dict[str, Any]) -> np.ndarray:
     return 0.5 * (1.0 + np.tanh(0.5 * logit))
 
 
-class LearnedIntention(RoadMapWrapper, gym.utils.RecordConstructorArgs):
-    """Add ``crossing_intention`` and ``crossing_intent`` (K,) from the shipped logistic heads.
+class LearnedIntent:
+    """Forecaster of ``crossing_intention`` and ``crossing_intent`` from the shipped logistic heads.
+
+    Args:
+        horizon: Seconds of ``crossing_intention``: one of the fitted horizons (1, 2 or 4).
+    """
+
+    def __init__(self, horizon: float = 2.0) -> None:
+        key = f"{float(horizon):g}"
+        if key not in HEADS[:-1]:
+            raise ValueError(f"learned intention: horizon must be one of 1, 2, 4 s, got {horizon}")
+        weights = shipped_weights()
+        if tuple(weights["features"]) != FEATURES:
+            raise ValueError("learned intention: the shipped weights were fitted on other features")
+        if float(weights["intent_horizon"]) != INTENT_HORIZON:
+            raise ValueError("learned intention: the shipped weights use another intent horizon")
+        self.horizon = float(horizon)
+        self.spec = ForecastSpec(paths=False, intent=True, intent_bound=True)
+        self._near = weights["heads"][key]
+        self._intent = weights["heads"]["intent"]
+        self._bound = release_threshold("learned")
+
+    def reset(self, seed: int | None) -> None:
+        """Nothing to reset: the heads read the current observation."""
+
+    def forecast(self, inputs: ForecastInput) -> Forecast:
+        """Both probabilities of every slot (0 for absent slots)."""
+        if inputs.scene is None:
+            raise ValueError(
+                "learned intention needs a crossing_env env (env.unwrapped.scenario) for the map"
+            )
+        feats = intent_features(inputs.observation, inputs.scene)
+        present = inputs.present
+        return Forecast(
+            intention=(predict(feats, self._near) * present).astype(np.float32),
+            intent=(predict(feats, self._intent) * present).astype(np.float32),
+            intent_bound=self._bound,
+        )
+
+
+class LearnedIntention(ForecastObservation):
+    """Add ``crossing_intention`` and ``crossing_intent`` (K,): a `LearnedIntent` in the one wrapper.
 
     Args:
         env: A ``crossing_env/Crossing-v0`` env (possibly wrapped).
@@ -181,32 +216,14 @@ class LearnedIntention(RoadMapWrapper, gym.utils.RecordConstructorArgs):
 
     def __init__(self, env: gym.Env, horizon: float = 2.0) -> None:
         gym.utils.RecordConstructorArgs.__init__(self, horizon=horizon)
-        gym.ObservationWrapper.__init__(self, env)
-        key = f"{float(horizon):g}"
-        if key not in HEADS[:-1]:
-            raise ValueError(f"learned intention: horizon must be one of 1, 2, 4 s, got {horizon}")
+        model = LearnedIntent(horizon)
         space = env.observation_space
         needed = {PEDESTRIANS_KEY, VEHICLES_KEY, EGO_KEY, PEDESTRIAN_HISTORY_KEY}
         if not isinstance(space, spaces.Dict) or not needed <= set(space.spaces):
             raise ValueError(f"learned intention needs the crossing_env Dict observation, got {space}")
-        weights = shipped_weights()
-        if tuple(weights["features"]) != FEATURES:
-            raise ValueError("learned intention: the shipped weights were fitted on other features")
-        if float(weights["intent_horizon"]) != INTENT_HORIZON:
-            raise ValueError("learned intention: the shipped weights use another intent horizon")
-        self.horizon = float(horizon)
-        self._near = weights["heads"][key]
-        self._intent = weights["heads"]["intent"]
-        self._map = map_from_env(env)
-        self._bound = np.array([release_threshold("learned")], dtype=np.float32)
-        self.observation_space = with_intent_keys(space)
-
-    def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """The observation with both keys added (0 for absent slots)."""
-        feats = intent_features(observation, self._map)
-        present = observation[PEDESTRIANS_KEY][:, PedestrianColumn.PRESENCE] > 0.5
-        out = dict(observation)
-        out[CROSSING_INTENTION_KEY] = (predict(feats, self._near) * present).astype(np.float32)
-        out[CROSSING_INTENT_KEY] = (predict(feats, self._intent) * present).astype(np.float32)
-        out[CROSSING_INTENT_BOUND_KEY] = self._bound.copy()
-        return out
+        if getattr(env.unwrapped, "scenario", None) is None:
+            raise ValueError(
+                "learned intention needs a crossing_env env (env.unwrapped.scenario) for the map"
+            )
+        super().__init__(env, model, "learned")
+        self.horizon = model.horizon

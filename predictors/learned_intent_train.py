@@ -47,12 +47,12 @@ from crossing_env.observation import (
     EgoColumn,
     PedestrianColumn,
 )
+from predictors.forecast import scene_from_env
 from predictors.intention import (
     INTENT_HORIZON,
     IntentionConfig,
     crossing_intention,
     look_rate_table,
-    map_from_env,
 )
 from predictors.learned_intent import FEATURES, HEADS, intent_features, predict
 from predictors.learned_intent_weights import FORMAT, MANIFEST_PATH, WEIGHTS_PATH, platt, sha256_bytes
@@ -150,7 +150,7 @@ def collect_episode(
     env = CrossingEnv(scenario)
     oracle = OracleIntention(env)
     obs, info = env.reset(seed=seed)
-    road_map = map_from_env(env)
+    road_map = scene_from_env(env)
     config = IntentionConfig()
     rates = {
         v: (look_rate_table(v, config), look_rate_table(v, config, config.red_light_prior))

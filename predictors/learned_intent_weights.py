@@ -27,24 +27,6 @@ CROSSING_INTENT_BOUND_KEY = "crossing_intent_bound"
 calibrated intent at or below it may release a legal wait; chosen on the training seeds)."""
 
 
-def with_intent_keys(space: Any) -> Any:
-    """`space` (a `gymnasium.spaces.Dict`) with the three keys every intent wrapper adds.
-
-    ``crossing_intention`` and ``crossing_intent`` (K,) and ``crossing_intent_bound`` (1,), all probabilities.
-    """
-    import numpy as np
-    from gymnasium import spaces
-
-    from crossing_env.observation import CROSSING_INTENT_KEY, CROSSING_INTENTION_KEY, PEDESTRIANS_KEY
-
-    k = space.spaces[PEDESTRIANS_KEY].shape[0]
-    new = dict(space.spaces)
-    new[CROSSING_INTENTION_KEY] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
-    new[CROSSING_INTENT_KEY] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
-    new[CROSSING_INTENT_BOUND_KEY] = spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float32)
-    return spaces.Dict(new)
-
-
 class IntentWeightsError(ValueError):
     """Weights that must not be used (missing, tampered with, or malformed)."""
 

@@ -44,37 +44,30 @@ from gymnasium import spaces
 
 from crossing_env import physics
 from crossing_env.observation import (
-    CROSSING_INTENT_KEY,
-    CROSSING_INTENTION_KEY,
     HISTORY_INTERVAL,
     PEDESTRIAN_HISTORY_KEY,
     PEDESTRIANS_KEY,
-    PREDICTED_PATHS_KEY,
     PointColumn,
 )
 from crossing_env.pedestrians.transitions import APPROACHING, CROSSING, WAITING
+from predictors.forecast import Forecast, ForecastInput, ForecastSpec
+from predictors.forecast_wrapper import PLAN_ACCELERATIONS_KEY, PLAN_PATHS_KEY, ForecastObservation
 
 __all__ = [
     "PLAN_ACCELERATIONS_KEY",
     "PLAN_PATHS_KEY",
+    "IntentOracle",
     "OracleIntention",
     "OracleTrajectory",
+    "PathOracle",
     "rollout_pedestrians",
 ]
-
-PLAN_PATHS_KEY = "plan_paths"
-"""Observation key of the plan-conditioned paths (P, K, 12, 2), one `predicted_paths` per plan."""
-PLAN_ACCELERATIONS_KEY = "plan_accelerations"
-"""Observation key of the plans' ego accelerations (P,), m/s², in the order of ``plan_paths``."""
 DEFAULT_PLANS: tuple[float, ...] = (1.5, 0.0, -2.5)
 """Default plans (m/s²): go (the yielding policy's `go_acceleration`), keep the speed, slow down
 (its `comfortable_deceleration`, below the 3 m/s² hard-braking threshold)."""
 
 PRED_LEN = 12
 """Predicted positions per pedestrian (the ETH/UCY protocol: 12, `HISTORY_INTERVAL` apart)."""
-MAX_STEP = 3.0
-"""Largest distance (m) a pedestrian covers in one 0.4 s step, for the space's bound (as the S-CGRU
-wrapper's)."""
 
 
 def _world(env: gym.Env) -> Any:
@@ -119,70 +112,49 @@ def rollout_pedestrians(world: Any, steps: int, acceleration: float = 0.0) -> tu
     return ids, pos
 
 
-class OracleIntention(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
-    """PRIVILEGED: the true crossing intent as ``crossing_intention`` (see the module docstring)."""
+class IntentOracle:
+    """PRIVILEGED forecaster: the true crossing intent of each slot (see the module docstring)."""
 
-    privileged: ClassVar[bool] = True
-    """Reads the ground truth: an upper bound for evaluation, never a sensor model."""
-
-    def __init__(self, env: gym.Env, undecided: float = 0.5) -> None:
-        gym.utils.RecordConstructorArgs.__init__(self, undecided=undecided)
-        gym.ObservationWrapper.__init__(self, env)
+    def __init__(self, undecided: float = 0.5) -> None:
         if not 0.0 <= undecided <= 1.0:
             raise ValueError(f"OracleIntention: undecided must be a probability in [0, 1], got {undecided}")
-        space = env.observation_space
-        if not isinstance(space, spaces.Dict) or PEDESTRIANS_KEY not in space.spaces:
-            raise ValueError(f"OracleIntention needs a crossing_env Dict observation, got {space}")
         self.undecided = float(undecided)
-        k = space.spaces[PEDESTRIANS_KEY].shape[0]
-        new = dict(space.spaces)
-        new[CROSSING_INTENTION_KEY] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
-        new[CROSSING_INTENT_KEY] = spaces.Box(0.0, 1.0, shape=(k,), dtype=np.float32)
-        self.observation_space = spaces.Dict(new)
+        self.spec = ForecastSpec(paths=False, intent=True, privileged=True)
+        self._env: gym.Env | None = None
 
-    def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """The observation with the true intent of each slot's pedestrian added."""
-        world = _world(self.env)
+    def bind(self, env: gym.Env) -> None:
+        """Read the ground truth of `env` from now on."""
+        self._env = env
+
+    def reset(self, seed: int | None) -> None:
+        """Nothing to forget: the truth is read afresh every step."""
+
+    def forecast(self, inputs: ForecastInput) -> Forecast:
+        """The true intent of each slot's pedestrian (undecided before the decision)."""
+        assert self._env is not None, "bind(env) first"
+        world = _world(self._env)
         peds = world.pedestrians
-        slots = _slots(self.env)
-        k = slots.shape[0]
-        out = np.zeros(k, dtype=np.float32)
+        slots = _slots(self._env)
+        out = np.zeros(slots.shape[0], dtype=np.float32)
         present = slots >= 0
         p = slots[present]
         decided = world.intent_decided_at[p] <= world.time + 1e-9  # NaN (undecided) compares False
         state = peds.state[p]
         to_cross = peds.intends[p] & ((state == APPROACHING) | (state == WAITING) | (state == CROSSING))
         out[present] = np.where(decided, to_cross.astype(np.float32), np.float32(self.undecided))
-        result = dict(observation)
-        result[CROSSING_INTENTION_KEY] = out
-        result[CROSSING_INTENT_KEY] = out.copy()
-        return result
+        return Forecast(intention=out, intent=out.copy())
 
 
-class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
-    """PRIVILEGED: each pedestrian's true next 12 positions as ``predicted_paths`` (module docstring)."""
-
-    privileged: ClassVar[bool] = True
-    """Reads the ground truth: an upper bound for evaluation, never a sensor model."""
+class PathOracle:
+    """PRIVILEGED forecaster: each pedestrian's true next 12 positions, one sample of weight 1 (module)."""
 
     def __init__(
         self,
-        env: gym.Env,
         refresh_steps: int = 4,
         plan_refresh_steps: int = 4,
         plan_accelerations: tuple[float, ...] = DEFAULT_PLANS,
     ) -> None:
         plans = tuple(float(a) for a in plan_accelerations)
-        gym.utils.RecordConstructorArgs.__init__(
-            self, refresh_steps=refresh_steps, plan_refresh_steps=plan_refresh_steps, plan_accelerations=plans
-        )
-        gym.ObservationWrapper.__init__(self, env)
-        space = env.observation_space
-        hist = space.spaces.get(PEDESTRIAN_HISTORY_KEY) if isinstance(space, spaces.Dict) else None
-        if not isinstance(hist, spaces.Box) or len(hist.shape) != 3:
-            raise ValueError(
-                f"OracleTrajectory needs {PEDESTRIAN_HISTORY_KEY!r} (K, T, 2) in the observation, got {space}"
-            )
         if not (isinstance(refresh_steps, int) and refresh_steps >= 1):
             raise ValueError(
                 f"OracleTrajectory: refresh_steps must be an integer >= 1, got {refresh_steps!r}"
@@ -198,95 +170,138 @@ class OracleTrajectory(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
         """Env steps between rollouts of the moving plans (each costs one rollout per refresh)."""
         self.plans = plans
         """Ego accelerations (m/s²) of the plans whose futures go into ``plan_paths`` (empty: no key)."""
-        self.num_slots = hist.shape[0]
-        bound = float(max(np.abs(hist.low).max(), np.abs(hist.high).max())) + PRED_LEN * MAX_STEP
-        self.bound = np.float32(bound) if np.isfinite(bound) else np.float32(np.finfo(np.float32).max)
-        new = dict(space.spaces)
-        new[PREDICTED_PATHS_KEY] = spaces.Box(
-            -self.bound, self.bound, (self.num_slots, PRED_LEN, len(PointColumn)), np.float32
-        )
-        if plans:
-            new[PLAN_PATHS_KEY] = spaces.Box(
-                -self.bound, self.bound, (len(plans), self.num_slots, PRED_LEN, len(PointColumn)), np.float32
-            )
-            # The plans' own accelerations: constants, so the box is exactly their range (finite bounds,
-            # as Gymnasium's checker asks).
-            new[PLAN_ACCELERATIONS_KEY] = spaces.Box(
-                np.float32(min(plans)), np.float32(max(plans)), (len(plans),), np.float32
-            )
-        self.observation_space = spaces.Dict(new)
+        self.spec = ForecastSpec(plans=plans, privileged=True)
+        self._env: gym.Env | None = None
         self._cache: tuple[int, np.ndarray, np.ndarray] | None = None  # (start step, ids, positions)
         self._plan_cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}  # plan → (ids, positions)
         self._plan_start = 0
+        self._keep: np.ndarray | None = None  # this step's keep-plan paths, for forecast_plans
         self.rollouts = 0
         """Rollouts run so far (each copies the world and steps it 4.8 s + refresh ahead)."""
 
-    def reset(
-        self, *, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[Any, dict[str, Any]]:
-        """Reset the env and forget the cached rollout."""
+    def bind(self, env: gym.Env) -> None:
+        """Read the ground truth of `env` from now on."""
+        self._env = env
+
+    def reset(self, seed: int | None) -> None:
+        """Forget the cached rollouts."""
         self._cache = None
         self._plan_cache = {}
-        return super().reset(seed=seed, options=options)
 
-    def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """The observation with the true future paths of the present slots added (and per plan)."""
-        world = _world(self.env)
-        peds = world.pedestrians
-        slots = _slots(self.env)
-        step = round(world.time / world.dt)
-        every = round(HISTORY_INTERVAL / world.dt)
-        shape = (self.num_slots, PRED_LEN, len(PointColumn))
-        paths = np.zeros(shape, np.float32)
-        plan_paths = np.zeros((len(self.plans), *shape), np.float32)
-        present = np.flatnonzero(slots >= 0)
-        if present.size:
-            p = slots[present]
-            want = peds.ids[p]
+    def _future(
+        self, ids: np.ndarray, pos: np.ndarray, at: int, p: np.ndarray, ego: np.ndarray
+    ) -> np.ndarray:
+        """(n, 12, 2) positions of pool slots `p` read from a rollout at offset `at`, relative to the ego."""
+        every = self._every
+        rows = at + every * np.arange(1, PRED_LEN + 1)  # (12,)
+        future = pos[rows][:, p]  # (12, n, 2)
+        alive = ids[rows][:, p] == self._want[None, :]  # one who leaves keeps its last position
+        for j in range(1, PRED_LEN):
+            future[j] = np.where(alive[j][:, None], future[j], future[j - 1])
+        return np.transpose(future - ego, (1, 0, 2)).astype(np.float32)
+
+    def forecast(self, inputs: ForecastInput) -> Forecast:
+        """The true future of the present slots under the keep plan (the ego holding its speed)."""
+        assert self._env is not None, "bind(env) first"
+        world = _world(self._env)
+        slots = _slots(self._env)
+        paths = np.zeros((slots.shape[0], PRED_LEN, len(PointColumn)), np.float32)
+        self._present = np.flatnonzero(slots >= 0)
+        self._keep = None
+        if self._present.size:
+            step = round(world.time / world.dt)
+            self._every = round(HISTORY_INTERVAL / world.dt)
+            self._step_now = step
+            p = slots[self._present]
+            self._p = p
+            self._want = world.pedestrians.ids[p]
             cache = self._cache
             offset = -1 if cache is None else step - cache[0]
             if (
                 cache is None
                 or offset >= self.refresh_steps
                 or offset < 0
-                or not np.all(cache[1][offset, p] == want)
+                or not np.all(cache[1][offset, p] == self._want)
             ):
-                ids, pos = rollout_pedestrians(world, PRED_LEN * every + self.refresh_steps - 1)
+                ids, pos = rollout_pedestrians(world, PRED_LEN * self._every + self.refresh_steps - 1)
                 self._cache = cache = (step, ids, pos)
                 self.rollouts += 1
                 offset = 0
             _, ids, pos = cache
-            moving = [a for a in self.plans if a != 0.0]
-            start = self._plan_start
-            plan_offset = step - start
-            if moving and (
-                not self._plan_cache
-                or plan_offset >= self.plan_refresh_steps
-                or plan_offset < 0
-                or not all(np.all(c[0][plan_offset, p] == want) for c in self._plan_cache.values())
-            ):
-                # Each plan's world starts from the same state (and a copy of the same generator).
-                steps = PRED_LEN * every + self.plan_refresh_steps - 1
-                self._plan_cache = {a: rollout_pedestrians(world, steps, a) for a in moving}
-                self._plan_start = step
-                self.rollouts += len(moving)
-                plan_offset = 0
-            ego = world.ego_position
-            jobs = [(paths, ids, pos, offset)]
-            for target, a in zip(plan_paths, self.plans, strict=True):
-                jobs.append(
-                    (target, ids, pos, offset) if a == 0.0 else (target, *self._plan_cache[a], plan_offset)
-                )
-            for target, plan_ids, positions, at in jobs:
-                rows = at + every * np.arange(1, PRED_LEN + 1)  # (12,)
-                future = positions[rows][:, p]  # (12, n, 2)
-                alive = plan_ids[rows][:, p] == want[None, :]  # one who leaves keeps its last position
-                for j in range(1, PRED_LEN):
-                    future[j] = np.where(alive[j][:, None], future[j], future[j - 1])
-                target[present] = np.transpose(future - ego, (1, 0, 2)).astype(np.float32)
-        out = dict(observation)
-        out[PREDICTED_PATHS_KEY] = np.clip(paths, -self.bound, self.bound)
-        if self.plans:
-            out[PLAN_PATHS_KEY] = np.clip(plan_paths, -self.bound, self.bound)
-            out[PLAN_ACCELERATIONS_KEY] = np.asarray(self.plans, np.float32)
+            self._keep = self._future(ids, pos, offset, p, world.ego_position)
+            paths[self._present] = self._keep
+        return Forecast(paths=paths[:, None])
+
+    def forecast_plans(self, inputs: ForecastInput) -> np.ndarray:
+        """(P, N, 12, 2): the true future under each plan (called after `forecast` for the same step)."""
+        assert self._env is not None, "bind(env) first"
+        world = _world(self._env)
+        out = np.zeros((len(self.plans), inputs.present.shape[0], PRED_LEN, len(PointColumn)), np.float32)
+        if self._keep is None:
+            return out
+        p, want = self._p, self._want
+        moving = [a for a in self.plans if a != 0.0]
+        plan_offset = self._step_now - self._plan_start
+        if moving and (
+            not self._plan_cache
+            or plan_offset >= self.plan_refresh_steps
+            or plan_offset < 0
+            or not all(np.all(c[0][plan_offset, p] == want) for c in self._plan_cache.values())
+        ):
+            # Each plan's world starts from the same state (and a copy of the same generator).
+            steps = PRED_LEN * self._every + self.plan_refresh_steps - 1
+            self._plan_cache = {a: rollout_pedestrians(world, steps, a) for a in moving}
+            self._plan_start = self._step_now
+            self.rollouts += len(moving)
+            plan_offset = 0
+        ego = world.ego_position
+        for target, a in zip(out, self.plans, strict=True):
+            target[self._present] = (
+                self._keep if a == 0.0 else self._future(*self._plan_cache[a], plan_offset, p, ego)
+            )
         return out
+
+
+class OracleIntention(ForecastObservation):
+    """PRIVILEGED: the true crossing intent as ``crossing_intention`` (`IntentOracle` in the one wrapper)."""
+
+    privileged: ClassVar[bool] = True
+    """Reads the ground truth: an upper bound for evaluation, never a sensor model."""
+
+    def __init__(self, env: gym.Env, undecided: float = 0.5) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self, undecided=undecided)
+        space = env.observation_space
+        if not isinstance(space, spaces.Dict) or PEDESTRIANS_KEY not in space.spaces:
+            raise ValueError(f"OracleIntention needs a crossing_env Dict observation, got {space}")
+        super().__init__(env, IntentOracle(undecided), "oracle")
+
+
+class OracleTrajectory(ForecastObservation):
+    """PRIVILEGED: the true next 12 positions as ``predicted_paths`` (`PathOracle` in the one wrapper)."""
+
+    privileged: ClassVar[bool] = True
+    """Reads the ground truth: an upper bound for evaluation, never a sensor model."""
+
+    def __init__(
+        self,
+        env: gym.Env,
+        refresh_steps: int = 4,
+        plan_refresh_steps: int = 4,
+        plan_accelerations: tuple[float, ...] = DEFAULT_PLANS,
+    ) -> None:
+        plans = tuple(float(a) for a in plan_accelerations)
+        gym.utils.RecordConstructorArgs.__init__(
+            self, refresh_steps=refresh_steps, plan_refresh_steps=plan_refresh_steps, plan_accelerations=plans
+        )
+        space = env.observation_space
+        hist = space.spaces.get(PEDESTRIAN_HISTORY_KEY) if isinstance(space, spaces.Dict) else None
+        if not isinstance(hist, spaces.Box) or len(hist.shape) != 3:
+            raise ValueError(
+                f"OracleTrajectory needs {PEDESTRIAN_HISTORY_KEY!r} (K, T, 2) in the observation, got {space}"
+            )
+        super().__init__(env, PathOracle(refresh_steps, plan_refresh_steps, plans), "oracle")
+
+    @property
+    def rollouts(self) -> int:
+        """Rollouts the path oracle has run so far."""
+        return self.forecaster.rollouts

@@ -42,17 +42,12 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from crossing_env.observation import (
-    PEDESTRIAN_HISTORY_KEY,
-    PEDESTRIANS_KEY,
-    PREDICTED_PATHS_KEY,
-    PREDICTED_SAMPLES_KEY,
-    PedestrianColumn,
-    PointColumn,
-)
+from crossing_env.observation import PEDESTRIAN_HISTORY_KEY, PEDESTRIANS_KEY, PointColumn
 from predictors.checkpoints import WEIGHTS_DIR, load_model
 from predictors.constants import MODEL_KINDS, OBS_LEN, PRED_LEN
 from predictors.fast_inference import FastPredictor, kernel_is_cached, load_kernel_file
+from predictors.forecast import Forecast, ForecastInput, ForecastSpec
+from predictors.forecast_wrapper import ForecastObservation
 
 if TYPE_CHECKING:
     import torch
@@ -93,8 +88,6 @@ def _torch() -> Any:
     return torch
 
 
-MAX_STEP = 3.0
-"""Largest displacement per 0.4 s step assumed when bounding predictions, metres (clipped beyond)."""
 CACHE_TOLERANCE = 1e-4
 """Largest per-coordinate difference, metres, between a history and the cached one (after the common
 translation) for which the cached paths are reused; float32 rounding of ego-frame values is ~1e-5 m."""
@@ -139,33 +132,20 @@ def resolve_model(model: str | Path) -> SocialRecurrent | str:
     return load_model(path)
 
 
-class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorArgs):
-    """Add ``predicted_paths`` (and optionally ``predicted_samples``) to a dict observation.
+class PathModel:
+    """Forecaster of a trained path model, a checkpoint, or the CVM (see the module docstring).
 
     Args:
-        env: env whose observation space follows the contract in the module docstring.
         model: ``"s-cgru"`` (default, shipped weights), another model kind, ``"cvm"``, or a checkpoint path.
-        num_samples: number of sampled futures per pedestrian (0 = none).
+        num_samples: number of sampled futures per pedestrian (0 = none: one path of weight 1, the most
+            likely); with samples, the most likely path is the forecast's mode and the samples weigh equally.
     """
 
-    def __init__(self, env: gym.Env, model: str | Path = "s-cgru", num_samples: int = 0) -> None:
-        gym.utils.RecordConstructorArgs.__init__(self, model=str(model), num_samples=num_samples)
-        gym.ObservationWrapper.__init__(self, env)
-        space = env.observation_space
-        if not isinstance(space, spaces.Dict) or PEDESTRIANS_KEY not in space.spaces:
-            raise ValueError(
-                f"TrajectoryPrediction needs a Dict observation space with {PEDESTRIANS_KEY!r}, got {space}"
-            )
-        hist = space.spaces.get(PEDESTRIAN_HISTORY_KEY)
-        xy = len(PointColumn)
-        if not isinstance(hist, spaces.Box) or len(hist.shape) != 3 or hist.shape[1:] != (OBS_LEN, xy):
-            raise ValueError(
-                f"observation {PEDESTRIAN_HISTORY_KEY!r} must be a Box (K, {OBS_LEN}, {xy}), got {hist}"
-            )
+    def __init__(self, model: str | Path = "s-cgru", num_samples: int = 0) -> None:
         if num_samples < 0:
             raise ValueError(f"num_samples must be >= 0, got {num_samples}")
-        self.num_slots = hist.shape[0]
         self.num_samples = num_samples
+        self.spec = ForecastSpec(samples=max(1, num_samples), mode=bool(num_samples), horizon=PRED_LEN)
         self._model_spec = model
         self._model: SocialRecurrent | str | None = None
         path = model_path(model)
@@ -173,17 +153,6 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
         if self._fast is None:  # no kernel file (or samples wanted): the checkpoint, through torch
             self._model = resolve_model(model)
             self._fast = FastPredictor(self._model) if not isinstance(self._model, str) else None
-        bound = float(max(np.abs(hist.low).max(), np.abs(hist.high).max())) + PRED_LEN * MAX_STEP
-        self.bound = np.float32(bound) if np.isfinite(bound) else np.float32(np.finfo(np.float32).max)
-        new = dict(space.spaces)
-        new[PREDICTED_PATHS_KEY] = spaces.Box(
-            -self.bound, self.bound, (self.num_slots, PRED_LEN, xy), np.float32
-        )
-        if num_samples:
-            new[PREDICTED_SAMPLES_KEY] = spaces.Box(
-                -self.bound, self.bound, (self.num_slots, num_samples, PRED_LEN, xy), np.float32
-            )
-        self.observation_space = spaces.Dict(new)
         self._seed = 0
         self._gen: torch.Generator | None = None  # made on first use: sampling is the only user
         self._sse_cache: dict[int, torch.Tensor] = {}
@@ -194,25 +163,22 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
         """Calls that ran the predictor."""
 
     def kernel_to_compile(self) -> Callable[[], None] | None:
-        """A call that compiles this wrapper's predictor kernel, where numba's on-disk cache lacks it.
+        """A call that compiles this predictor's kernel, where numba's on-disk cache lacks it.
 
-        None where the kernel is cached or the predictor has none (CVM, the oracle). The kernel is the
-        largest of a run (seconds to compile): `crossing_eval.tasks.warm_up` compiles it in a second
-        process while the env's kernels compile in the first.
+        None where the kernel is cached or the predictor has none (CVM). The kernel is the largest of a run
+        (seconds to compile): `crossing_eval.tasks.warm_up` compiles it in a second process while the env's
+        kernels compile in the first.
         """
         if self._fast is None or kernel_is_cached():
             return None
         return self._fast.compile_kernel
 
-    def reset(
-        self, *, seed: int | None = None, options: dict[str, Any] | None = None
-    ) -> tuple[Any, dict[str, Any]]:
-        """Reset the env; a seed also reseeds the sampling generator so episodes are reproducible."""
+    def reset(self, seed: int | None) -> None:
+        """A seed reseeds the sampling generator so episodes are reproducible."""
         if seed is not None:
             self._seed = int(seed)
             if self._gen is not None:
                 self._gen.manual_seed(self._seed)
-        return super().reset(seed=seed, options=options)
 
     @property
     def model(self) -> SocialRecurrent | str:
@@ -258,18 +224,14 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
         out_s = None if samples is None else samples.permute(1, 0, 2, 3).numpy()
         return paths.numpy(), out_s
 
-    def observation(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """Predict the paths of the present pedestrian slots (batched over the slots)."""
-        peds = np.asarray(observation[PEDESTRIANS_KEY])
-        present = np.flatnonzero(peds[:, PedestrianColumn.PRESENCE] > 0.5)
-        paths = np.zeros((self.num_slots, PRED_LEN, len(PointColumn)), np.float32)
-        samples = (
-            np.zeros((self.num_slots, self.num_samples, PRED_LEN, len(PointColumn)), np.float32)
-            if self.num_samples
-            else None
-        )
+    def forecast(self, inputs: ForecastInput) -> Forecast:
+        """Predict the paths of the present slots (one window: the pooling sees every present neighbour)."""
+        present = np.flatnonzero(inputs.present)
+        n, xy = inputs.present.shape[0], len(PointColumn)
+        paths = np.zeros((n, PRED_LEN, xy), np.float32)
+        samples = np.zeros((n, self.num_samples, PRED_LEN, xy), np.float32) if self.num_samples else None
         if len(present):
-            hist = np.asarray(observation[PEDESTRIAN_HISTORY_KEY], dtype=np.float32)[present]
+            hist = inputs.history[present]
             match = None
             if samples is None and self._anchor is not None:
                 match = match_translated(hist, self._anchor[0])
@@ -282,11 +244,49 @@ class TrajectoryPrediction(gym.ObservationWrapper, gym.utils.RecordConstructorAr
                 self.cache_misses += 1
                 if samples is None:
                     self._anchor = (hist, p)
-            paths[present] = np.nan_to_num(p)
+            paths[present] = p
             if samples is not None and s is not None:
-                samples[present] = np.nan_to_num(s)
-        out = dict(observation)
-        out[PREDICTED_PATHS_KEY] = np.clip(paths, -self.bound, self.bound)
-        if samples is not None:
-            out[PREDICTED_SAMPLES_KEY] = np.clip(samples, -self.bound, self.bound)
-        return out
+                samples[present] = s
+        if samples is None:
+            return Forecast(paths=paths[:, None])
+        return Forecast(paths=samples, mode=paths)
+
+
+class TrajectoryPrediction(ForecastObservation):
+    """Add ``predicted_paths`` (and optionally ``predicted_samples``): a `PathModel` in the one wrapper.
+
+    Args:
+        env: env whose observation space follows the contract in the module docstring.
+        model: ``"s-cgru"`` (default, shipped weights), another model kind, ``"cvm"``, or a checkpoint path.
+        num_samples: number of sampled futures per pedestrian (0 = none).
+    """
+
+    def __init__(self, env: gym.Env, model: str | Path = "s-cgru", num_samples: int = 0) -> None:
+        gym.utils.RecordConstructorArgs.__init__(self, model=str(model), num_samples=num_samples)
+        space = env.observation_space
+        if not isinstance(space, spaces.Dict) or PEDESTRIANS_KEY not in space.spaces:
+            raise ValueError(
+                f"TrajectoryPrediction needs a Dict observation space with {PEDESTRIANS_KEY!r}, got {space}"
+            )
+        hist = space.spaces.get(PEDESTRIAN_HISTORY_KEY)
+        xy = len(PointColumn)
+        if not isinstance(hist, spaces.Box) or len(hist.shape) != 3 or hist.shape[1:] != (OBS_LEN, xy):
+            raise ValueError(
+                f"observation {PEDESTRIAN_HISTORY_KEY!r} must be a Box (K, {OBS_LEN}, {xy}), got {hist}"
+            )
+        super().__init__(env, PathModel(model, num_samples), str(model))
+
+    @property
+    def cache_hits(self) -> int:
+        """Calls served from the translation cache."""
+        return self.forecaster.cache_hits
+
+    @property
+    def cache_misses(self) -> int:
+        """Calls that ran the predictor."""
+        return self.forecaster.cache_misses
+
+    @property
+    def model(self) -> SocialRecurrent | str:
+        """The torch model (or ``"cvm"``)."""
+        return self.forecaster.model

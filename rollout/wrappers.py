@@ -1,9 +1,11 @@
-"""The one table of prediction wrappers: ``--intention`` and ``--predictor`` names → observation wrappers.
+"""The one table of predictors: ``--intention`` and ``--predictor`` names → forecasters in the one wrapper.
 
-Every tool builds its wrappers here, so a name means the same wrapper everywhere and a wrapper that cannot
-be built is an error everywhere (`WrapperError`, a ``ValueError``): nothing runs on without the predictor
-that was asked for. The opt-out is explicit: the name ``none``. The ``oracle`` entries read the world's
-ground truth; they exist as privileged upper bounds and are only used when asked for by name.
+Every predictor is a forecaster (`predictors.forecast`) and reaches the policy through the one observation
+wrapper (`predictors.forecast_wrapper.ForecastObservation`). Every tool builds them here, so a name means the
+same predictor everywhere and one that cannot be built is an error everywhere (`WrapperError`, a
+``ValueError``): nothing runs on without the predictor that was asked for. The opt-out is explicit: the
+name ``none``. The ``oracle`` entries read the world's ground truth; they exist as privileged upper bounds
+and are only used when asked for by name.
 
 Adding a predictor is one row in `INTENTION_WRAPPERS` or `TRAJECTORY_WRAPPERS` (and its module).
 """
@@ -30,12 +32,12 @@ class WrapperError(ValueError):
 
 @dataclass(frozen=True)
 class WrapperEntry:
-    """How to build one wrapper: ``module:attr`` imported on first use (the trajectory models load torch)."""
+    """How to build one forecaster: ``module:attr`` imported on first use (path models load torch)."""
 
     target: str
-    """``"pkg.module:Class"`` of the `gymnasium.ObservationWrapper`."""
+    """``"pkg.module:Class"`` of the forecaster (`predictors.forecast.Forecaster`)."""
     kwargs: Mapping[str, Any] = field(default_factory=dict)
-    """Keyword arguments after the env."""
+    """Its keyword arguments."""
     privileged: bool = False
     """Reads the ground truth (an oracle bound, never a deployable predictor)."""
     summary: str = ""
@@ -44,17 +46,21 @@ class WrapperEntry:
 
 INTENTION_WRAPPERS: dict[str, WrapperEntry] = {
     "qlb": WrapperEntry(
-        "predictors.intention:QLBIntention", summary="quantum-like Bayesian crossing intention (Song et al.)"
+        "predictors.intention:IntentionModel",
+        {"variant": "qlb"},
+        summary="quantum-like Bayesian crossing intention (Song et al.)",
     ),
     "classical": WrapperEntry(
-        "predictors.intention:ClassicalIntention", summary="the same model without the interference term"
+        "predictors.intention:IntentionModel",
+        {"variant": "cbm"},
+        summary="the same model without the interference term",
     ),
     "learned": WrapperEntry(
-        "predictors.learned_intent:LearnedIntention",
+        "predictors.learned_intent:LearnedIntent",
         summary="logistic regression on observation features, fitted on simulated training seeds",
     ),
     "oracle": WrapperEntry(
-        "predictors.oracle:OracleIntention", privileged=True, summary="the true decision (upper bound)"
+        "predictors.oracle:IntentOracle", privileged=True, summary="the true decision (upper bound)"
     ),
 }
 """``--intention`` names (besides ``none``): wrappers that add ``crossing_intention`` and
@@ -62,23 +68,23 @@ INTENTION_WRAPPERS: dict[str, WrapperEntry] = {
 
 TRAJECTORY_WRAPPERS: dict[str, WrapperEntry] = {
     "s-cgru": WrapperEntry(
-        "predictors.trajectory_wrapper:TrajectoryPrediction",
+        "predictors.trajectory_wrapper:PathModel",
         {"model": "s-cgru"},
         summary="social convolutional GRU (Xu et al.), shipped weights",
     ),
     "cvm": WrapperEntry(
-        "predictors.trajectory_wrapper:TrajectoryPrediction",
+        "predictors.trajectory_wrapper:PathModel",
         {"model": "cvm"},
         summary="constant-velocity model (the trivial baseline)",
     ),
     "oracle": WrapperEntry(
-        "predictors.oracle:OracleTrajectory", privileged=True, summary="the true future (upper bound)"
+        "predictors.oracle:PathOracle", privileged=True, summary="the true future (upper bound)"
     ),
 }
 """``--predictor`` names (besides ``none`` and checkpoint paths): wrappers that add ``predicted_paths``."""
 
-CHECKPOINT_WRAPPER = "predictors.trajectory_wrapper:TrajectoryPrediction"
-"""The wrapper a ``--predictor`` checkpoint path is loaded into (``model=path``)."""
+CHECKPOINT_WRAPPER = "predictors.trajectory_wrapper:PathModel"
+"""The forecaster a ``--predictor`` checkpoint path is loaded into (``model=path``)."""
 
 
 DEGRADED_INTENTION = "oracle-flip"
@@ -121,10 +127,13 @@ def _load(target: str, what: str) -> Any:
         raise WrapperError(f"{what}: cannot load {target} ({exc})") from exc
 
 
-def _build(env: Any, entry: WrapperEntry, what: str, **extra: Any) -> Any:
-    cls = _load(entry.target, what)
+def _build(env: Any, entry: WrapperEntry, what: str, name: str, **extra: Any) -> Any:
+    """`env` under the one forecast wrapper holding the forecaster `entry` builds."""
+    from predictors.forecast_wrapper import ForecastObservation
+
+    factory = _load(entry.target, what)
     try:
-        return cls(env, **{**entry.kwargs, **extra})
+        return ForecastObservation(env, factory(**{**entry.kwargs, **extra}), name)
     except WrapperError:
         raise
     except (OSError, ValueError, RuntimeError, KeyError) as exc:
@@ -142,12 +151,11 @@ def wrap_intention(env: Any, name: str) -> tuple[Any, str | None]:
         return env, None
     flip = degraded_level(name, DEGRADED_INTENTION)
     if flip is not None:
-        oracle = _build(env, INTENTION_WRAPPERS["oracle"], f"intention {name!r}")
-        entry = WrapperEntry("predictors.degraded:FlippedIntention", {"flip": flip}, privileged=True)
-        return _build(oracle, entry, f"intention {name!r}"), f"intention:{name}"
+        entry = WrapperEntry("predictors.degraded:FlippedIntent", {"flip": flip}, privileged=True)
+        return _build(env, entry, f"intention {name!r}", name), f"intention:{name}"
     if name not in INTENTION_WRAPPERS:
         raise WrapperError(f"intention {name!r}: unknown; choose from {', '.join(intention_names())}")
-    return _build(env, INTENTION_WRAPPERS[name], f"intention {name!r}"), f"intention:{name}"
+    return _build(env, INTENTION_WRAPPERS[name], f"intention {name!r}", name), f"intention:{name}"
 
 
 def wrap_predictor(env: Any, name: str) -> tuple[Any, str | None]:
@@ -161,17 +169,16 @@ def wrap_predictor(env: Any, name: str) -> tuple[Any, str | None]:
     what = f"predictor {name!r}"
     sigma = degraded_level(name, DEGRADED_PREDICTOR)
     if sigma is not None:
-        oracle = _build(env, TRAJECTORY_WRAPPERS["oracle"], what)
-        entry = WrapperEntry("predictors.degraded:NoisyPaths", {"sigma": sigma}, privileged=True)
-        return _build(oracle, entry, what), f"trajectory:{name}"
+        entry = WrapperEntry("predictors.degraded:NoisyOraclePaths", {"sigma": sigma}, privileged=True)
+        return _build(env, entry, what, name), f"trajectory:{name}"
     if name in TRAJECTORY_WRAPPERS:
-        return _build(env, TRAJECTORY_WRAPPERS[name], what), f"trajectory:{name}"
+        return _build(env, TRAJECTORY_WRAPPERS[name], what, name), f"trajectory:{name}"
     if not Path(name).expanduser().is_file():
         raise WrapperError(
             f"{what}: not one of {', '.join(predictor_names())} nor an existing checkpoint file"
         )
     entry = WrapperEntry(CHECKPOINT_WRAPPER)
-    return _build(env, entry, what, model=str(Path(name).expanduser())), f"trajectory:{name}"
+    return _build(env, entry, what, name, model=str(Path(name).expanduser())), f"trajectory:{name}"
 
 
 def wrap(env: Any, intention: str = NONE, predictor: str = NONE) -> tuple[Any, list[str]]:

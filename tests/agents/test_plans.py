@@ -13,7 +13,8 @@ from agents.config import PredictiveYieldingConfig
 from agents.plans import choose_plans, score_plans
 from agents.predictive import PredictiveYielding
 from agents.view import View, braking_travel_time, parse_observation
-from predictors.oracle import PLAN_ACCELERATIONS_KEY, PLAN_PATHS_KEY, OracleTrajectory
+from predictors.forecast_wrapper import PLAN_ACCELERATIONS_KEY, PLAN_PATHS_KEY
+from predictors.oracle import OracleTrajectory
 from rollout.build import RolloutSpec, build, run_spec
 from scenarios import load_scenario
 from scenarios.config import ScenarioConfig

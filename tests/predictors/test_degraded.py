@@ -11,7 +11,14 @@ import pytest
 
 import crossing_env  # noqa: F401 - registers the env
 from crossing_env.observation import PedestrianColumn
-from predictors.degraded import FlippedIntention, NoisyPaths, flip_draws, path_errors
+from predictors.degraded import (
+    FlippedIntent,
+    FlippedIntention,
+    NoisyOraclePaths,
+    NoisyPaths,
+    flip_draws,
+    path_errors,
+)
 from predictors.oracle import OracleIntention, OracleTrajectory
 from rollout import WrapperError, wrap
 from studies.value_of_prediction import run_rows
@@ -29,8 +36,8 @@ def _run(env: gym.Env, seed: int, steps: int) -> list[dict[str, np.ndarray]]:
 
 
 def _intent_env(flip: float | None) -> gym.Env:
-    env = OracleIntention(gym.make("crossing_env/Crossing-v0", scenario="bus_stop_zebra"))
-    return env if flip is None else FlippedIntention(env, flip)
+    env = gym.make("crossing_env/Crossing-v0", scenario="bus_stop_zebra")
+    return OracleIntention(env) if flip is None else FlippedIntention(env, flip)
 
 
 def test_flip_zero_is_the_oracle_and_flip_one_inverts_every_decided_intent() -> None:
@@ -70,8 +77,10 @@ def test_flips_belong_to_tracks_are_nested_and_match_flip_draws() -> None:
 
 
 def _path_env(sigma: float | None) -> gym.Env:
-    env = OracleTrajectory(gym.make("crossing_env/Crossing-v0", scenario="busy_zebra"), plan_accelerations=())
-    return env if sigma is None else NoisyPaths(env, sigma)
+    env = gym.make("crossing_env/Crossing-v0", scenario="busy_zebra")
+    if sigma is None:
+        return OracleTrajectory(env, plan_accelerations=())
+    return NoisyPaths(env, sigma, plan_accelerations=())
 
 
 def test_noisy_paths_add_exactly_path_errors_and_zero_noise_is_the_oracle() -> None:
@@ -103,9 +112,12 @@ def test_path_errors_grow_with_the_horizon_at_the_stated_scale() -> None:
 
 def test_degraded_names_build_through_the_wrapper_table_and_reject_nonsense() -> None:
     env, used = wrap(gym.make("crossing_env/Crossing-v0", scenario="zebra_case1"), "oracle-flip=0.2", "none")
-    assert isinstance(env, FlippedIntention) and env.flip == 0.2 and used == ["intention:oracle-flip=0.2"]
+    flipped = env.forecaster
+    assert (
+        isinstance(flipped, FlippedIntent) and flipped.flip == 0.2 and used == ["intention:oracle-flip=0.2"]
+    )
     env, used = wrap(gym.make("crossing_env/Crossing-v0", scenario="zebra_case1"), "none", "oracle-noise=1")
-    assert isinstance(env, NoisyPaths) and env.sigma == 1.0
+    assert isinstance(env.forecaster, NoisyOraclePaths) and env.forecaster.sigma == 1.0
     with pytest.raises(WrapperError, match="needs a number"):
         wrap(gym.make("crossing_env/Crossing-v0", scenario="zebra_case1"), "oracle-flip=lots", "none")
     with pytest.raises(WrapperError, match="probability"):

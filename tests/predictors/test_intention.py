@@ -160,12 +160,13 @@ def test_the_wrappers_shared_parts_give_the_functions_own_values(wrapper: type[C
     compared = 0
     for _ in range(60):
         obs, *_ = env.step(np.zeros(1, dtype=np.float32))
-        args = (env._map, env.config, env._rates, env._red_rates)
-        near = crossing_intention(obs, env.horizon, *args)
+        model = env.forecaster
+        args = (env._scene, model.config, model._rates, model._red_rates)
+        near = crossing_intention(obs, model.horizon, *args)
         raw = crossing_intention(obs, INTENT_HORIZON, *args, ahead_only=False)
         present = obs["pedestrians"][:, PedestrianColumn.PRESENCE] > 0.5
         np.testing.assert_array_equal(obs["crossing_intention"], near)
-        intent = (platt(raw, env._calibration) * present).astype(np.float32)
+        intent = (platt(raw, model._calibration) * present).astype(np.float32)
         np.testing.assert_array_equal(obs["crossing_intent"], intent)
         compared += int(present.sum())
     assert compared > 0

@@ -16,10 +16,10 @@ from crossing_env.observation import (
     PedestrianColumn,
     VehicleColumn,
 )
+from predictors.forecast import SceneGeometry
 from predictors.intention import (
     GAP_GRID,
     IntentionConfig,
-    RoadMap,
     _intention_parts,
     _IntentionParts,
     look_rate_table,
@@ -31,7 +31,7 @@ REPO = Path(__file__).resolve().parents[2]
 # The numpy form the kernel replaced, kept here as the reference.
 def _numpy_parts(
     obs: dict[str, np.ndarray],
-    road_map: RoadMap,
+    road_map: SceneGeometry,
     config: IntentionConfig,
     rate_table: np.ndarray,
     red_rate_table: np.ndarray,
@@ -125,7 +125,7 @@ def _observation(rng: np.random.Generator, k: int = 12, m: int = 6) -> dict[str,
 @pytest.mark.parametrize("has_crossing", [False, True])
 def test_the_kernel_gives_the_numpy_form_bit_for_bit(signalised: bool, has_crossing: bool) -> None:
     rng = np.random.default_rng(7)
-    road = RoadMap(-3.5, 3.5, 4.5, 2.0, 2.0, signalised, has_crossing)
+    road = SceneGeometry(-3.5, 3.5, 4.5, 2.0, 2.0, signalised, has_crossing)
     config = IntentionConfig()
     rates = look_rate_table("qlb", config)
     red = look_rate_table("qlb", config, 0.2)
@@ -183,7 +183,7 @@ def test_warm_up_compiles_what_every_wrapper_offers(monkeypatch: pytest.MonkeyPa
     monkeypatch.setattr("predictors.intention.parts_kernel_is_cached", lambda: False)
     monkeypatch.setattr("predictors.intention.compile_parts_kernel", lambda: called.append("intention"))
     monkeypatch.setattr(
-        "predictors.trajectory_wrapper.TrajectoryPrediction.kernel_to_compile",
+        "predictors.trajectory_wrapper.PathModel.kernel_to_compile",
         lambda self: lambda: called.append("trajectory"),
     )
     compile_all = tasks._kernels_to_compile(env)

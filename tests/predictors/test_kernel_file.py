@@ -64,11 +64,11 @@ def test_the_wrapper_uses_the_kernel_file_and_loads_the_model_only_when_asked(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
     env = TrajectoryPrediction(FakePedEnv(), model="s-cgru")
-    assert env._model is None  # no torch model built for the most-likely paths
+    assert env.forecaster._model is None  # no torch model built for the most-likely paths
     obs, _ = env.reset(seed=3)
     monkeypatch.setattr(trajectory_wrapper, "load_kernel_file", lambda path: None)
     reference = TrajectoryPrediction(FakePedEnv(), model="s-cgru")  # no kernel file: through torch
-    assert reference._model is not None
+    assert reference.forecaster._model is not None
     ref, _ = reference.reset(seed=3)
     # The same model: equal up to the last bit of the BLAS-derived array (see DERIVED_BY_BLAS).
     np.testing.assert_allclose(obs["predicted_paths"], ref["predicted_paths"], rtol=0, atol=1e-4)

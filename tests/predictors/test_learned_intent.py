@@ -81,7 +81,7 @@ def test_learned_intent_separates_crossers_from_leavers() -> None:
     obs, _ = env.reset(seed=1)
     ped = np.zeros_like(obs["pedestrians"])
     hist = np.zeros_like(obs["pedestrian_history"])
-    ego_y = env._map.kerb_low  # negative: the south kerb relative to the ego
+    ego_y = env._scene.kerb_low  # negative: the south kerb relative to the ego
     ped[0] = [1, 20.0, 0.0, 0.0, 1.3, 1, 0, 1]  # on the zebra, crossing
     ped[1] = [1, 20.0, ego_y - 3.0, 0.0, -1.3, 0, 0, 0]  # on the sidewalk, walking away
     hist[0, :, 1] = np.linspace(ego_y - 1.0, 0.0, hist.shape[1])
