@@ -48,6 +48,7 @@ __all__ = [
     "POSITION_BOUND",
     "PREDICTED_PATHS_KEY",
     "PREDICTED_SAMPLES_KEY",
+    "SAMPLE_WEIGHTS_KEY",
     "TRACK_ID_BOUND",
     "VEHICLES_KEY",
     "VEHICLE_FEATURES",
@@ -82,7 +83,11 @@ PREDICTED_PATHS_KEY: Final = "predicted_paths"
 """(K, T, 2) added by the trajectory wrappers: most-likely future positions, `HISTORY_INTERVAL` apart, from
 one interval ahead; columns `PointColumn`."""
 PREDICTED_SAMPLES_KEY: Final = "predicted_samples"
-"""(K, S, T, 2) added by the trajectory wrapper with samples: sampled futures; columns `PointColumn`."""
+"""(K, S, T, 2) added by every path forecaster: its S path samples per slot (zeros in absent slots); columns
+`PointColumn`."""
+SAMPLE_WEIGHTS_KEY: Final = "sample_weights"
+"""(K, S) beside ``predicted_samples``: each sample's probability (summing to 1 in a present slot, 0 in an
+absent one: the samples' presence flags)."""
 BASE_KEYS: Final = (EGO_KEY, PEDESTRIANS_KEY, PEDESTRIAN_HISTORY_KEY, PEDESTRIAN_TRACKS_KEY, VEHICLES_KEY)
 """The keys of the bare env's observation."""
 WRAPPER_KEYS: Final = (
@@ -90,6 +95,7 @@ WRAPPER_KEYS: Final = (
     CROSSING_INTENT_KEY,
     PREDICTED_PATHS_KEY,
     PREDICTED_SAMPLES_KEY,
+    SAMPLE_WEIGHTS_KEY,
 )
 """The keys the predictor wrappers add."""
 OBSERVATION_KEYS: Final = BASE_KEYS + WRAPPER_KEYS

@@ -17,9 +17,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from agents.sb3 import ModelFileError
 from crossing_common.cli import DefaultsHelpFormatter, int_at_least, positive_float
 from crossing_common.folders import OutputFolderError, StagedFolder
+from crossing_env.observation import PEDESTRIANS_KEY, PedestrianColumn
 from crossing_eval.grid import GRID_MARKER, make_grid_tasks, parse_grid, write_grid_outputs
 from crossing_eval.ncap import format_ncap_table, ncap_rows
 from crossing_eval.outputs import import_plotting, write_outputs
@@ -46,8 +49,15 @@ from crossing_eval.runners import (
 from crossing_eval.scoring import REFERENCE_POLICY, reference_tasks
 from crossing_eval.summary import format_table, summarise
 from crossing_eval.tasks import EpisodeRecord, EpisodeTask, cached_env, make_tasks
-from rollout import build_policy
-from rollout.wrappers import DEFAULT_INTENTION, DEFAULT_PREDICTOR, WrapperError, intention_names
+from predictors.forecast import ForecastError
+from rollout import build_policy, make_env
+from rollout.wrappers import (
+    DEFAULT_INTENTION,
+    DEFAULT_PREDICTOR,
+    WrapperError,
+    intention_names,
+    plugin_target,
+)
 from scenarios import ScenarioError, list_scenarios, load_scenario
 
 DEFAULT_EPISODES = 5
@@ -355,12 +365,44 @@ def _preflight(args: argparse.Namespace, tasks: Sequence[EpisodeTask]) -> None:
     scenario = args.scenarios[0]
     for intention, predictor in sorted({(t.intention, t.predictor) for t in tasks}):
         cached_env(scenario, intention=intention, predictor=predictor)
+        if plugin_target(intention) or plugin_target(predictor):
+            _try_plugins(scenario, intention, predictor, args.seed)
     env, _ = cached_env(scenario)
     for policy in args.policies:
         try:
             build_policy(policy, env, blind=not args.reveal_scenario)
         except (ValueError, TypeError, OSError) as exc:
             raise type(exc)(f"policy {policy!r} cannot be built: {exc}") from exc
+
+
+PLUGIN_TRIAL_STEPS = 100
+"""Steps (10 s) the preflight runs plug-in predictors for, stopping at the first pedestrian they forecast."""
+
+
+def _try_plugins(scenario: str, intention: str, predictor: str, seed: int) -> None:
+    """Run a fresh env under plug-in predictors until they have forecast a pedestrian (at most 10 s).
+
+    A plug-in that raises or returns a malformed forecast is caught here, before the first episode.
+
+    Raises:
+        WrapperError: the plug-in raised or returned a malformed forecast (one line naming it).
+    """
+    env, _ = make_env(scenario, intention=intention, predictor=predictor)
+    names = " and ".join(n for n in (intention, predictor) if plugin_target(n))
+    try:
+        obs, _ = env.reset(seed=seed)
+        for _ in range(PLUGIN_TRIAL_STEPS):
+            if (obs[PEDESTRIANS_KEY][:, PedestrianColumn.PRESENCE] > 0.5).any():
+                break
+            obs, _, terminated, truncated, _ = env.step(
+                np.zeros(env.action_space.shape, env.action_space.dtype)
+            )
+            if terminated or truncated:
+                break
+    except Exception as exc:  # the plug-in's code: any error becomes one line naming it
+        raise WrapperError(f"predictor {names}: {type(exc).__name__}: {exc}") from exc
+    finally:
+        env.close()
 
 
 def _run(
@@ -401,8 +443,9 @@ def _run(
     except RayConnectionError as exc:
         args.exit_now = exc.abandoned
         return _fail(str(exc))
-    except (ScenarioError, EpisodeFailed, WrapperError, ModelFileError) as exc:
-        # WrapperError: a predictor that cannot be loaded (missing module, corrupt or tampered weights).
+    except (ScenarioError, EpisodeFailed, WrapperError, ForecastError, ModelFileError) as exc:
+        # WrapperError: a predictor that cannot be loaded (missing module, corrupt or tampered weights);
+        # ForecastError: a (plug-in) predictor's malformed forecast in an episode.
         return _fail(str(exc))
     except RunInterrupted as exc:  # SIGINT / SIGTERM: workers stopped, the previous output untouched
         print(f"crossing-eval: {exc}", file=sys.stderr)

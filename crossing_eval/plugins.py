@@ -24,6 +24,7 @@ from rollout.wrappers import (
     WrapperError,
     degraded_level,
     intention_names,
+    plugin_target,
 )
 
 PREDICTOR_NAMES = ("s-cgru", "cvm", "none", "oracle")
@@ -85,20 +86,23 @@ def degraded_spec(text: str, kind: str) -> str | None:
 
 
 def intention_spec(text: str) -> str:
-    """A built-in intention name, or ``oracle-flip=q``.
+    """A built-in intention name, ``oracle-flip=q``, or a plug-in (``pkg.module:attr``, an entry point).
+
+    A plug-in is loaded in the run's preflight, before the first episode.
 
     Raises:
         ValueError: anything else.
     """
-    if text in intention_names() or degraded_spec(text, "intention"):
+    if text in intention_names() or degraded_spec(text, "intention") or plugin_target(text):
         return text
     raise ValueError(
-        f"unknown intention {text!r}: not one of {', '.join(intention_names())} nor {DEGRADED_INTENTION}=q"
+        f"unknown intention {text!r}: not one of {', '.join(intention_names())},"
+        f" {DEGRADED_INTENTION}=q, nor pkg.module:attr"
     )
 
 
 def predictor_spec(text: str) -> str:
-    """A built-in predictor name, ``oracle-noise=sigma``, or an existing checkpoint file as an absolute path.
+    """A built-in predictor name, ``oracle-noise=sigma``, a checkpoint file (made absolute) or a plug-in.
 
     Raises:
         ValueError: neither a name nor an existing file.
@@ -106,11 +110,14 @@ def predictor_spec(text: str) -> str:
     if text in PREDICTOR_NAMES or degraded_spec(text, "predictor"):
         return text
     path = Path(text).expanduser()
-    if not path.is_file():
-        raise ValueError(
-            f"unknown predictor {text!r}: not one of {', '.join(PREDICTOR_NAMES)} nor an existing checkpoint"
-        )
-    return str(path.resolve())
+    if path.is_file():
+        return str(path.resolve())
+    if plugin_target(text):
+        return text
+    raise ValueError(
+        f"unknown predictor {text!r}: not one of {', '.join(PREDICTOR_NAMES)}, pkg.module:attr,"
+        " nor an existing checkpoint"
+    )
 
 
 def policies_help() -> str:

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from rollout import TRAJECTORY_WRAPPERS
+from rollout.wrappers import plugin_target
 from scenarios import load_scenario
 
 REPO = Path(__file__).resolve().parents[1]
@@ -85,8 +86,16 @@ def sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+def plugin_file(name: str) -> Path | None:
+    """The source file of a plug-in predictor's module (imported by then), None for any other name."""
+    target = plugin_target(name)
+    module = sys.modules.get(target.partition(":")[0]) if target else None
+    source = getattr(module, "__file__", None)
+    return Path(source) if source else None
+
+
 def model_files(policies: Sequence[str], predictors: Sequence[str]) -> list[Path]:
-    """The weight and statistics files the run loaded: shipped or given by path."""
+    """The weight and statistics files the run loaded (shipped or given by path), and plug-in sources."""
     files: list[Path] = []
     for name in predictors:
         if name in TRAJECTORY_WRAPPERS:
@@ -97,6 +106,8 @@ def model_files(policies: Sequence[str], predictors: Sequence[str]) -> list[Path
                 files.append(WEIGHTS_DIR / f"{model}_all.pt")
         elif name != "none" and Path(name).is_file():
             files.append(Path(name))
+        elif (source := plugin_file(name)) is not None:
+            files.append(source)
     from agents.registry import SHIPPED_POLICIES
 
     for spec in policies:
@@ -134,9 +145,9 @@ def provenance(
 def run_provenance(args: Any, records: Sequence[Any]) -> dict[str, Any]:
     """`provenance` of a `crossing-eval` run (plain or grid) from its parsed arguments and its records."""
     labels = [label for record in records for label in record.predictors]
-    return provenance(args.scenarios, args.policies, trajectory_predictors(labels), args.argv)
+    return provenance(args.scenarios, args.policies, predictors_ran(labels), args.argv)
 
 
-def trajectory_predictors(labels: Sequence[str]) -> list[str]:
-    """Predictor names from wrapper labels such as ``trajectory:s-cgru`` (what actually ran)."""
-    return sorted({label.split(":", 1)[1] for label in labels if label.startswith("trajectory:")})
+def predictors_ran(labels: Sequence[str]) -> list[str]:
+    """Predictor names from labels such as ``trajectory:s-cgru`` or ``intention:qlb`` (what actually ran)."""
+    return sorted({label.split(":", 1)[1] for label in labels})

@@ -192,26 +192,36 @@ class Forecaster(Protocol):
         """The forecast for the step `inputs` describes."""
 
 
-def _check(name: str, field: str, value: Any, shape: tuple[int, ...], rows: np.ndarray) -> np.ndarray:
-    """`value` as a real array of `shape`, finite in the present rows (the leading axis is the slots)."""
+def _array(name: str, field: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """`value` as a real array of `shape`."""
     try:
-        arr = np.asarray(value)
+        arr = value if isinstance(value, np.ndarray) else np.asarray(value)
     except Exception as exc:
         raise ForecastError(f"forecaster {name!r}: {field} is not an array ({exc})") from None
     if arr.dtype.kind not in "fiu":
         raise ForecastError(f"forecaster {name!r}: {field} must be real numbers, got dtype {arr.dtype}")
     if arr.shape != shape:
         raise ForecastError(f"forecaster {name!r}: {field} must have shape {shape}, got {arr.shape}")
-    if not np.isfinite(arr[rows]).all():
-        raise ForecastError(
-            f"forecaster {name!r}: {field} has NaN or infinite values for present pedestrians"
-        )
+    return arr
+
+
+def _check(name: str, field: str, value: Any, shape: tuple[int, ...], rows: np.ndarray) -> np.ndarray:
+    """`value` as a real array of `shape`, finite in the present rows (the leading axis is the slots)."""
+    arr = _array(name, field, value, shape)
+    # Every slot finite is the common case (one reduction); only then look at the present rows alone.
+    if not np.isfinite(arr).all() and not np.isfinite(arr[rows]).all():
+        raise ForecastError(f"forecaster {name!r}: {field} is NaN or infinite for a present pedestrian")
     return arr
 
 
 def _check_probability(name: str, field: str, value: Any, n: int, rows: np.ndarray) -> None:
-    arr = _check(name, field, value, (n,), rows)
-    if ((arr[rows] < 0.0) | (arr[rows] > 1.0)).any():
+    arr = _array(name, field, value, (n,))
+    if not arr.size or (arr.min() >= 0.0 and arr.max() <= 1.0):  # NaN fails both comparisons
+        return
+    mine = arr[rows]
+    if not np.isfinite(mine).all():
+        raise ForecastError(f"forecaster {name!r}: {field} is NaN or infinite for a present pedestrian")
+    if ((mine < 0.0) | (mine > 1.0)).any():
         raise ForecastError(f"forecaster {name!r}: {field} must be probabilities in [0, 1]")
 
 

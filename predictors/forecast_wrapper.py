@@ -5,7 +5,9 @@ geometry refreshed at every reset), asks the forecaster, checks the answer (`val
 malformed one is a `ForecastError` naming the forecaster, never a silent zero) and writes:
 
 - paths: ``predicted_paths`` (N, H, 2), the most likely path (the forecaster's mode, else its heaviest
-  sample); with a mode apart from the samples also ``predicted_samples`` (N, S, H, 2);
+  sample), and the distribution: ``predicted_samples`` (N, S, H, 2) with ``sample_weights`` (N, S) (equal
+  weights where the forecaster gives none; 0 in absent slots, so the weights are the samples' presence
+  flags);
 - plans: ``plan_paths`` (P, N, H, 2) and ``plan_accelerations`` (P,);
 - intent: ``crossing_intention`` and ``crossing_intent`` (N,), and ``crossing_intent_bound`` (1,) where
   the forecaster publishes one.
@@ -30,10 +32,12 @@ from crossing_env.observation import (
     PEDESTRIANS_KEY,
     PREDICTED_PATHS_KEY,
     PREDICTED_SAMPLES_KEY,
+    SAMPLE_WEIGHTS_KEY,
     PedestrianColumn,
     PointColumn,
 )
 from predictors.forecast import (
+    Forecast,
     Forecaster,
     ForecastError,
     ForecastInput,
@@ -115,8 +119,8 @@ class ForecastObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         new: dict[str, spaces.Box] = {}
         if spec.paths:
             new[PREDICTED_PATHS_KEY] = spaces.Box(-b, b, (n, *path), np.float32)
-            if spec.mode:
-                new[PREDICTED_SAMPLES_KEY] = spaces.Box(-b, b, (n, spec.samples, *path), np.float32)
+            new[PREDICTED_SAMPLES_KEY] = spaces.Box(-b, b, (n, spec.samples, *path), np.float32)
+            new[SAMPLE_WEIGHTS_KEY] = spaces.Box(0.0, 1.0, (n, spec.samples), np.float32)
         if spec.plans:
             new[PLAN_PATHS_KEY] = spaces.Box(-b, b, (len(spec.plans), n, *path), np.float32)
             # The plans' own accelerations: constants, so the box is exactly their range.
@@ -165,18 +169,7 @@ class ForecastObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         out = dict(observation)
         where = present[:, None, None]
         if spec.paths:
-            paths = np.asarray(forecast.paths, dtype=np.float32)
-            if spec.mode:
-                best = np.asarray(forecast.mode, dtype=np.float32)
-                samples = np.where(where[:, None], paths, np.float32(0.0))
-                out[PREDICTED_SAMPLES_KEY] = np.clip(samples, -self.bound, self.bound)
-            elif spec.samples == 1 or forecast.weights is None:
-                best = paths[:, 0]
-            else:
-                heaviest = np.argmax(np.asarray(forecast.weights), axis=1)
-                best = paths[np.arange(len(paths)), heaviest]
-            best = np.where(where, best, np.float32(0.0))
-            out[PREDICTED_PATHS_KEY] = np.clip(best, -self.bound, self.bound)
+            self._write_paths(out, forecast, present)
         if spec.plans:
             plans = validate_plan_paths(name, self.forecaster.forecast_plans(inputs), spec, inputs)  # type: ignore[attr-defined]
             plans = np.where(where[None], np.asarray(plans, dtype=np.float32), np.float32(0.0))
@@ -191,6 +184,30 @@ class ForecastObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
             if spec.intent_bound:
                 out[CROSSING_INTENT_BOUND_KEY] = np.array([forecast.intent_bound], dtype=np.float32)
         return out
+
+    def _write_paths(self, out: dict[str, np.ndarray], forecast: Forecast, present: np.ndarray) -> None:
+        """``predicted_paths``, ``predicted_samples`` and ``sample_weights`` of a checked forecast."""
+        spec, bound = self.forecast_spec, self.bound
+        paths = np.asarray(forecast.paths, dtype=np.float32)
+        if forecast.weights is None:
+            weights = np.broadcast_to(np.float32(1.0 / spec.samples), paths.shape[:2])
+        else:
+            weights = np.asarray(forecast.weights, dtype=np.float32)
+        if spec.mode:
+            best = np.asarray(forecast.mode, dtype=np.float32)
+        elif spec.samples == 1 or forecast.weights is None:
+            best = paths[:, 0]
+        else:
+            best = paths[np.arange(len(paths)), np.argmax(weights, axis=1)]
+        where = present[:, None, None]
+        best = np.clip(np.where(where, best, np.float32(0.0)), -bound, bound)
+        out[PREDICTED_PATHS_KEY] = best
+        if spec.samples == 1 and not spec.mode:
+            out[PREDICTED_SAMPLES_KEY] = best[:, None]  # the one sample is the path shown
+        else:
+            samples = np.where(where[:, None], paths, np.float32(0.0))
+            out[PREDICTED_SAMPLES_KEY] = np.clip(samples, -bound, bound)
+        out[SAMPLE_WEIGHTS_KEY] = np.where(present[:, None], weights, np.float32(0.0))
 
     def kernel_to_compile(self) -> Callable[[], None] | None:
         """The forecaster's compile step to run ahead (`crossing_eval.tasks.warm_up`), None where none."""

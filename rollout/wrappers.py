@@ -7,14 +7,20 @@ same predictor everywhere and one that cannot be built is an error everywhere (`
 name ``none``. The ``oracle`` entries read the world's ground truth; they exist as privileged upper bounds
 and are only used when asked for by name.
 
-Adding a predictor is one row in `INTENTION_WRAPPERS` or `TRAJECTORY_WRAPPERS` (and its module).
+Adding a predictor is one row in `INTENTION_WRAPPERS` or `TRAJECTORY_WRAPPERS` (and its module). A user's
+own predictor needs no row: ``--predictor pkg.module:attr`` / ``--intention pkg.module:attr`` (or the name of
+an installed entry point of the group `ENTRY_POINT_GROUP`) names a forecaster class or a factory called
+with no arguments, once per env (`plugin_target`).
 """
 
 from __future__ import annotations
 
 import importlib
+import os
+import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +30,10 @@ DEFAULT_INTENTION = "qlb"
 """Intention wrapper for a policy that reads predictions when the caller names none."""
 DEFAULT_PREDICTOR = "s-cgru"
 """Trajectory predictor for a policy that reads predictions when the caller names none."""
+
+
+ENTRY_POINT_GROUP = "crossing_env.predictors"
+"""Entry-point group of installed predictor plug-ins: ``name = "pkg.module:attr"`` (a forecaster factory)."""
 
 
 class WrapperError(ValueError):
@@ -119,12 +129,76 @@ def predictor_names() -> tuple[str, ...]:
     return (*TRAJECTORY_WRAPPERS, NONE)
 
 
+def _entry_points() -> dict[str, str]:
+    return {ep.name: ep.value for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def _dotted(text: str) -> bool:
+    return bool(text) and all(part.isidentifier() for part in text.split("."))
+
+
+def plugin_target(name: str) -> str | None:
+    """``pkg.module:attr`` of a plug-in predictor name, None for any other name.
+
+    A name is a plug-in when it has that form or is an installed entry point of `ENTRY_POINT_GROUP`
+    (built-in names, degraded oracles and checkpoint files are resolved before).
+    """
+    found = _entry_points().get(name)
+    if found is not None:
+        return found
+    module, sep, attr = name.partition(":")
+    return name if sep and _dotted(module) and _dotted(attr) else None
+
+
+def _import(module: str) -> Any:
+    """Import `module`, looking in the current folder too, as ``python -m`` would.
+
+    The folder is appended to ``sys.path`` only when the module is not found otherwise, so installed
+    modules keep precedence, and worker processes started afterwards find it as well.
+    """
+    try:
+        return importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        here = os.getcwd()
+        if exc.name != module.split(".")[0] or here in sys.path or "" in sys.path:
+            raise
+        sys.path.append(here)
+        return importlib.import_module(module)
+
+
 def _load(target: str, what: str) -> Any:
     module, _, attr = target.partition(":")
     try:
-        return getattr(importlib.import_module(module), attr)
+        obj: Any = _import(module)
+        for part in attr.split("."):
+            obj = getattr(obj, part)
     except (ImportError, AttributeError) as exc:
         raise WrapperError(f"{what}: cannot load {target} ({exc})") from exc
+    except Exception as exc:  # the plug-in's own import-time code raised: one line, not a traceback
+        raise WrapperError(f"{what}: importing {module} raised {type(exc).__name__}: {exc}") from exc
+    return obj
+
+
+def _plugin(env: Any, name: str, target: str, what: str, kind: str) -> Any:
+    """`env` under the one forecast wrapper holding the plug-in forecaster `target` makes."""
+    from predictors.forecast import ForecastSpec
+    from predictors.forecast_wrapper import ForecastObservation
+
+    factory = _load(target, what)
+    if not callable(factory):
+        raise WrapperError(f"{what}: {target} is not a forecaster class or factory")
+    try:
+        forecaster = factory()
+    except Exception as exc:
+        raise WrapperError(f"{what}: {target}() raised {type(exc).__name__}: {exc}") from exc
+    spec = getattr(forecaster, "spec", None)
+    if isinstance(spec, ForecastSpec) and not getattr(spec, kind):
+        flag = "paths=True" if kind == "paths" else "intent=True"
+        raise WrapperError(f"{what}: {target} does not forecast {kind} (its ForecastSpec needs {flag})")
+    try:
+        return ForecastObservation(env, forecaster, name)
+    except ValueError as exc:
+        raise WrapperError(str(exc)) from exc
 
 
 def _build(env: Any, entry: WrapperEntry, what: str, name: str, **extra: Any) -> Any:
@@ -154,7 +228,12 @@ def wrap_intention(env: Any, name: str) -> tuple[Any, str | None]:
         entry = WrapperEntry("predictors.degraded:FlippedIntent", {"flip": flip}, privileged=True)
         return _build(env, entry, f"intention {name!r}", name), f"intention:{name}"
     if name not in INTENTION_WRAPPERS:
-        raise WrapperError(f"intention {name!r}: unknown; choose from {', '.join(intention_names())}")
+        target = plugin_target(name)
+        if target is not None:
+            return _plugin(env, name, target, f"intention {name!r}", "intent"), f"intention:{name}"
+        raise WrapperError(
+            f"intention {name!r}: unknown; choose from {', '.join(intention_names())} or pkg.module:attr"
+        )
     return _build(env, INTENTION_WRAPPERS[name], f"intention {name!r}", name), f"intention:{name}"
 
 
@@ -174,8 +253,11 @@ def wrap_predictor(env: Any, name: str) -> tuple[Any, str | None]:
     if name in TRAJECTORY_WRAPPERS:
         return _build(env, TRAJECTORY_WRAPPERS[name], what, name), f"trajectory:{name}"
     if not Path(name).expanduser().is_file():
+        target = plugin_target(name)
+        if target is not None:
+            return _plugin(env, name, target, what, "paths"), f"trajectory:{name}"
         raise WrapperError(
-            f"{what}: not one of {', '.join(predictor_names())} nor an existing checkpoint file"
+            f"{what}: not one of {', '.join(predictor_names())}, pkg.module:attr, nor an existing checkpoint"
         )
     entry = WrapperEntry(CHECKPOINT_WRAPPER)
     return _build(env, entry, what, name, model=str(Path(name).expanduser())), f"trajectory:{name}"

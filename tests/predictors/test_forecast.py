@@ -120,6 +120,11 @@ def test_a_weighted_forecaster_shows_its_heaviest_sample_and_passes_the_env_chec
     straight = hist[:, -1, None] + np.arange(1, 13)[None, :, None] * (hist[:, -1] - hist[:, -2])[:, None]
     np.testing.assert_allclose(obs["predicted_paths"][present], straight[present], atol=1e-4)
     assert not obs["predicted_paths"][~present].any()  # absent slots are zeros
+    # The distribution beside it: every sample, and the weights as the samples' presence flags.
+    assert obs["predicted_samples"].shape == (len(present), 3, 12, 2)
+    np.testing.assert_array_equal(obs["predicted_samples"][present, 1], obs["predicted_paths"][present])
+    np.testing.assert_allclose(obs["sample_weights"][present], np.tile([0.25, 0.5, 0.25], (present.sum(), 1)))
+    assert not obs["sample_weights"][~present].any() and not obs["predicted_samples"][~present].any()
 
 
 def test_a_forecast_that_turns_bad_mid_episode_stops_the_episode_with_its_name() -> None:
@@ -180,3 +185,29 @@ def test_every_built_in_is_a_forecaster_in_the_one_wrapper(intention: str, predi
     assert used and env.name == used[0].split(":", 1)[1]
     obs, _ = env.reset(seed=1)
     assert env.observation_space.contains(obs)
+
+
+def test_a_one_path_forecaster_shows_its_path_as_one_sample_of_weight_one() -> None:
+    env, _ = wrap(_env(), NONE, "cvm")
+    env.reset(seed=2)
+    for _ in range(30):
+        obs, *_ = env.step(np.zeros(1, np.float32))
+    present = obs["pedestrians"][:, 0] > 0.5
+    assert present.any()
+    np.testing.assert_array_equal(obs["predicted_samples"][:, 0], obs["predicted_paths"])
+    np.testing.assert_array_equal(obs["sample_weights"][:, 0], present.astype(np.float32))
+
+
+def test_sampled_s_cgru_shows_its_mode_and_equal_weights() -> None:
+    from predictors.trajectory_wrapper import TrajectoryPrediction
+
+    env = TrajectoryPrediction(_env(), num_samples=4)
+    env.reset(seed=2)
+    for _ in range(30):
+        obs, *_ = env.step(np.zeros(1, np.float32))
+    present = obs["pedestrians"][:, 0] > 0.5
+    assert obs["predicted_samples"].shape[1] == 4
+    np.testing.assert_array_equal(
+        obs["sample_weights"][present], np.full((present.sum(), 4), 0.25, np.float32)
+    )
+    assert not np.array_equal(obs["predicted_samples"][present, 0], obs["predicted_paths"][present])

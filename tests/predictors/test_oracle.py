@@ -66,7 +66,13 @@ def test_oracle_rollout_does_not_change_the_episode() -> None:
         b, *_ = oracle.step(action)
         for key in a:
             np.testing.assert_array_equal(a[key], b[key])
-    assert set(b) - set(a) == {"predicted_paths", "plan_paths", "plan_accelerations"}
+    assert set(b) - set(a) == {
+        "predicted_paths",
+        "predicted_samples",
+        "sample_weights",
+        "plan_paths",
+        "plan_accelerations",
+    }
     assert oracle.observation_space.contains(b)
 
 
