@@ -189,6 +189,10 @@ def _import_attr(spec: str) -> Any:
         obj: Any = importlib.import_module(module)
     except ImportError as exc:
         raise ValueError(f"policy {spec!r}: cannot import module {module!r} ({exc})") from None
+    except Exception as exc:  # the plug-in's own import-time code raised: one line, not a traceback
+        raise ValueError(
+            f"policy {spec!r}: importing {module!r} raised {type(exc).__name__}: {exc}"
+        ) from None
     for part in attr.split("."):
         if not hasattr(obj, part):
             raise ValueError(f"policy {spec!r}: module {module!r} has no attribute {attr!r}")

@@ -50,7 +50,7 @@ from crossing_eval.scoring import REFERENCE_POLICY, reference_tasks
 from crossing_eval.summary import format_table, summarise
 from crossing_eval.tasks import EpisodeRecord, EpisodeTask, cached_env, make_tasks
 from predictors.forecast import ForecastError
-from rollout import build_policy, make_env
+from rollout import build_policy, checked_action, make_env
 from rollout.wrappers import (
     DEFAULT_INTENTION,
     DEFAULT_PREDICTOR,
@@ -162,15 +162,17 @@ def build_parser() -> argparse.ArgumentParser:
         type=_predictor,
         default=DEFAULT_PREDICTOR,
         help="trajectory predictor wrapper for policies that use predictions: "
-        f"{', '.join(PREDICTOR_CHOICES)}, oracle-noise=sigma (the oracle with an error of sigma m at 4.8 s)"
-        " or a checkpoint file",
+        f"{', '.join(PREDICTOR_CHOICES)}, oracle-noise=sigma (the oracle with an error of sigma m at 4.8 s),"
+        " a checkpoint file, or your own forecaster: pkg.module:attr (a module in the current folder is"
+        " found) or an entry point of the group crossing_env.predictors",
     )
     parser.add_argument(
         "--intention",
         type=_intention,
         default=DEFAULT_INTENTION,
         help="crossing-intention wrapper for policies that use predictions: "
-        f"{', '.join(INTENTION_CHOICES)}, or oracle-flip=q (the oracle wrong for a share q of pedestrians)",
+        f"{', '.join(INTENTION_CHOICES)}, oracle-flip=q (the oracle wrong for a share q of pedestrians),"
+        " or your own intent forecaster: pkg.module:attr or an entry point of crossing_env.predictors",
     )
     parser.add_argument(
         "--grid",
@@ -367,12 +369,45 @@ def _preflight(args: argparse.Namespace, tasks: Sequence[EpisodeTask]) -> None:
         cached_env(scenario, intention=intention, predictor=predictor)
         if plugin_target(intention) or plugin_target(predictor):
             _try_plugins(scenario, intention, predictor, args.seed)
-    env, _ = cached_env(scenario)
-    for policy in args.policies:
-        try:
-            build_policy(policy, env, blind=not args.reveal_scenario)
-        except (ValueError, TypeError, OSError) as exc:
-            raise type(exc)(f"policy {policy!r} cannot be built: {exc}") from exc
+    wrappers = {t.policy: (t.intention, t.predictor) for t in reversed(tasks)}  # each policy's first
+    envs: dict[tuple[str, str], Any] = {}
+    try:
+        for policy in args.policies:
+            if wrappers[policy] not in envs:  # a fresh env: the cached ones stay as the episodes find them
+                envs[wrappers[policy]] = make_env(scenario, *wrappers[policy])[0]
+            _try_policy(policy, envs[wrappers[policy]], args.seed, blind=not args.reveal_scenario)
+    finally:
+        for env in envs.values():
+            env.close()
+
+
+def _try_policy(policy: str, env: Any, seed: int, *, blind: bool) -> None:
+    """Build `policy`, reset it and ask it for its first action on `env`, as an episode would.
+
+    Any error, a ``sys.exit()`` included, becomes one line naming the policy and the call that failed.
+
+    Raises:
+        PolicyTrialError: the policy cannot be built, reset or asked, or its first action is not one.
+    """
+    call = "building it"
+    try:
+        built = build_policy(policy, env, blind=blind)
+        call = f"reset(seed={seed})"
+        built.reset(seed=seed)
+        obs, _ = env.reset(seed=seed)
+        call = "its first action"
+        checked_action(built(obs))
+    except WrapperError:
+        raise
+    except SystemExit as exc:
+        raise PolicyTrialError(f"policy {policy!r}: {call} called sys.exit({exc.code!r})") from None
+    except Exception as exc:
+        what = "cannot be built" if call == "building it" else f"{call} failed"
+        raise PolicyTrialError(f"policy {policy!r} {what}: {type(exc).__name__}: {exc}") from exc
+
+
+class PolicyTrialError(ValueError):
+    """A policy that failed its trial before the first episode (one line naming it and the call)."""
 
 
 PLUGIN_TRIAL_STEPS = 100

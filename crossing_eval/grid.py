@@ -18,6 +18,7 @@ from typing import Any
 from agents import policy_uses_predictors
 from crossing_eval.plugins import degraded_spec
 from crossing_eval.tasks import EpisodeRecord, EpisodeTask, make_tasks
+from rollout.wrappers import plugin_target
 
 GRID_KEYS = ("intention", "predictor")
 """The axes a grid spec may name."""
@@ -43,6 +44,7 @@ def parse_grid(
     """`["intention=none,qlb", "predictor=none,cvm"]` → `GridSpec`; raises ValueError naming the bad item.
 
     An axis left out is ``none`` only; ``none`` is always added (the reference row of the differences).
+    Plug-in predictors (``pkg.module:attr``, entry points) are values too.
     """
     values: dict[str, list[str]] = {}
     allowed = {"intention": tuple(intention_choices), "predictor": tuple(predictor_choices)}
@@ -57,7 +59,7 @@ def parse_grid(
         if not names:
             raise ValueError(f"grid item {item!r}: no values after '='")
         for name in names:
-            if name not in allowed[key] and not degraded_spec(name, key):
+            if name not in allowed[key] and not degraded_spec(name, key) and not plugin_target(name):
                 raise ValueError(
                     f"grid item {item!r}: unknown {key} {name!r}; allowed: {', '.join(allowed[key])}"
                 )

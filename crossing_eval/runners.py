@@ -34,6 +34,7 @@ from crossing_eval.tasks import (
     run_episode,
     warm_up,
 )
+from rollout import ActionError
 
 IN_FLIGHT_PER_WORKER = 2
 """Batches of tasks (`crossing_eval.tasks.batches`) submitted at a time per worker (lazy submission keeps
@@ -68,7 +69,7 @@ def run_batch_guarded(batch: list[EpisodeTask]) -> list[EpisodeRecord]:
     """
     try:
         return run_batch(batch)
-    except Exception:
+    except (Exception, SystemExit):  # a plug-in's sys.exit() too: it must not end the worker or the run
         return [run_episode_guarded(t) for t in batch]
 
 
@@ -79,14 +80,24 @@ class RayConnectionError(ConnectionError):
     """A `ray.init` call was left running in a background thread: the process should exit now."""
 
 
+def _plugin_error(exc: BaseException) -> str:
+    """One line for a plug-in's ``sys.exit()`` or a policy's answer that is not an action."""
+    if isinstance(exc, SystemExit):
+        return f"the policy or a predictor called sys.exit({exc.code!r})"
+    return f"{type(exc).__name__}: {exc}"
+
+
 def run_episode_guarded(task: EpisodeTask) -> EpisodeRecord:
     """`run_episode` whose errors always arrive whole in the parent process.
 
     An exception that pickles (e.g. `scenarios.ScenarioError`) is re-raised as is; one that does not (it
-    would surface as a `BrokenProcessPool` with its message lost) becomes `EpisodeFailed` with its text.
+    would surface as a `BrokenProcessPool` with its message lost) becomes `EpisodeFailed` with its text, and
+    so does a ``sys.exit()`` in a plug-in (in a pool worker it would reach the parent as its own exit).
     """
     try:
         return run_episode(task)
+    except (SystemExit, ActionError) as exc:
+        raise EpisodeFailed(task, _plugin_error(exc)) from None
     except Exception as exc:
         try:
             pickle.loads(pickle.dumps(exc))
@@ -201,7 +212,7 @@ def _run_local(
     if workers <= 1:
         out = []
         for batch in batches(tasks):
-            done = run_batch(batch)
+            done = run_batch_guarded(batch)
             out.extend(done)
             progress(len(done))
         return out
@@ -219,7 +230,10 @@ def _run_local(
         # tens of seconds). The episodes of the look-ahead then go to the workers, the slowest first.
         head = heaviest_first(list(itertools.islice(todo, FIRST_EPISODE_LOOKAHEAD)))
         if head:
-            warm_up(head[0])
+            try:
+                warm_up(head[0])
+            except (SystemExit, ActionError) as exc:  # as a worker would report it
+                raise EpisodeFailed(head[0], _plugin_error(exc)) from None
         todo = itertools.chain(head, todo)
     pending = batches(todo)
     pool = ProcessPoolExecutor(

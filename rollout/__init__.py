@@ -13,7 +13,17 @@ This layer sits above `agents` and `predictors` and below the applications (`cro
 from __future__ import annotations
 
 from rollout.build import Rollout, RolloutSpec, build, build_policy, make_env, run_spec, wrappers_for
-from rollout.episode import Episode, Frame, dynamics_digest, frames, run_episode, run_episodes, slot_ids
+from rollout.episode import (
+    ActionError,
+    Episode,
+    Frame,
+    checked_action,
+    dynamics_digest,
+    frames,
+    run_episode,
+    run_episodes,
+    slot_ids,
+)
 from rollout.wrappers import (
     DEFAULT_INTENTION,
     DEFAULT_PREDICTOR,
@@ -32,6 +42,7 @@ __all__ = [
     "INTENTION_WRAPPERS",
     "NONE",
     "TRAJECTORY_WRAPPERS",
+    "ActionError",
     "Episode",
     "Frame",
     "Rollout",
@@ -39,6 +50,7 @@ __all__ = [
     "WrapperError",
     "build",
     "build_policy",
+    "checked_action",
     "dynamics_digest",
     "frames",
     "intention_names",

@@ -23,6 +23,59 @@ from crossing_env.safety import EpisodeMetrics
 from crossing_env.types import GroundTruth
 
 
+class ActionError(ValueError):
+    """A policy returned something that is not an action (the message says what it returned)."""
+
+
+def _describe(raw: Any) -> str:
+    text = repr(raw)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def checked_action(raw: Any) -> np.ndarray:
+    """`raw` as the env's action, float32 of shape (1,).
+
+    An action is a real number or a real array of one element, finite. Strings, booleans, objects, several
+    numbers and NaN or infinite values are refused, never coerced: a policy that returns ``"0.5"`` has a bug.
+
+    Raises:
+        ActionError: anything else, with what was returned.
+    """
+    if type(raw) is np.ndarray and raw.dtype.kind == "f" and raw.size == 1:  # the built-ins: the fast path
+        action = raw.astype(np.float32, copy=False).reshape(1)
+    elif isinstance(raw, (bool, np.bool_, str, bytes)):
+        raise ActionError(f"the action must be a real number, got {_describe(raw)}")
+    else:
+        try:
+            arr = np.asarray(raw)
+        except Exception:  # an object numpy cannot read as an array
+            raise ActionError(f"the action must be a real number, got {_describe(raw)}") from None
+        if arr.dtype.kind not in "fiu" or arr.size != 1:
+            raise ActionError(f"the action must be one real number, got {_describe(raw)}")
+        action = arr.astype(np.float32).reshape(1)
+    if not np.isfinite(action[0]):
+        raise ActionError(f"the action must be finite, got {_describe(raw)}")
+    return action
+
+
+def checked_actions(raw: Any, n: int) -> np.ndarray:
+    """A batched policy's actions, (n, 1) float32: `checked_action`'s rule for each of the `n` episodes.
+
+    Raises:
+        ActionError: not n real, finite numbers.
+    """
+    try:
+        arr = np.asarray(raw)
+    except Exception:
+        raise ActionError(f"the actions must be {n} real numbers, got {_describe(raw)}") from None
+    if arr.dtype.kind not in "fiu" or arr.size != n:
+        raise ActionError(f"the actions must be {n} real numbers, got {_describe(raw)}")
+    actions = arr.astype(np.float32).reshape(n, 1)
+    if not np.isfinite(actions).all():
+        raise ActionError(f"the actions must be finite, got {_describe(raw)}")
+    return actions
+
+
 @dataclass
 class Frame:
     """One frame of an episode: what the policy saw and what was true."""
@@ -121,8 +174,10 @@ def frames(
         limit = min(limit, max_steps)
     step = 0
     while step < limit:
-        raw = actions[step] if actions is not None else policy(obs)  # type: ignore[misc]
-        action = np.asarray(raw, dtype=np.float32).reshape(1)
+        if actions is not None:
+            action = np.asarray(actions[step], dtype=np.float32).reshape(1)
+        else:
+            action = checked_action(policy(obs))  # type: ignore[misc]
         obs, reward, terminated, truncated, info = env.step(action)
         step += 1
         yield Frame(
@@ -197,7 +252,7 @@ def run_episodes(
     step = 0
     while running and step < limit:
         batch = {key: np.stack([obs[key] for obs in last]) for key in keys}
-        actions = np.asarray(policy(batch), dtype=np.float32).reshape(n, -1)
+        actions = checked_actions(policy(batch), n)
         step += 1
         still = []
         for i in running:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from typing import ClassVar
 
@@ -71,3 +72,61 @@ def knows_where(scenario=None, dt=None):
         return np.full((*np.shape(obs["ego"])[:-1], 1), -1.0 if told else 0.0, dtype=np.float32)
 
     return policy
+
+
+class _Trouble:
+    """A plug-in that drives at constant speed until it misbehaves (the subclasses say how)."""
+
+    def __init__(self, scenario=None, dt=None) -> None:
+        self.calls = 0
+
+    def reset(self, seed=None) -> None:
+        self.calls = 0
+
+    def __call__(self, obs):
+        self.calls += 1
+        return np.zeros(1, np.float32)
+
+
+class ExitsLater(_Trouble):
+    """Calls sys.exit(3) at its 20th action (after the preflight's one)."""
+
+    def __call__(self, obs):
+        if self.calls >= 19:
+            sys.exit(3)
+        return super().__call__(obs)
+
+
+class RaisesInReset(_Trouble):
+    """Its reset raises."""
+
+    def reset(self, seed=None) -> None:
+        raise KeyError("episode_state")
+
+
+class ResetWithoutSeed(_Trouble):
+    """Its reset takes no seed."""
+
+    def reset(self) -> None:  # type: ignore[override]
+        self.calls = 0
+
+
+class ReturnsNaN(_Trouble):
+    """Its action is NaN."""
+
+    def __call__(self, obs):
+        return np.array([np.nan], np.float32)
+
+
+class ReturnsText(_Trouble):
+    """Its action is the string "0.5"."""
+
+    def __call__(self, obs):
+        return "0.5"
+
+
+class ExitsInInit(_Trouble):
+    """Calls sys.exit() while being built."""
+
+    def __init__(self, scenario=None, dt=None) -> None:
+        sys.exit("no GPU")

@@ -71,3 +71,11 @@ def test_an_installed_entry_point_is_a_predictor_name(monkeypatch: pytest.Monkey
     np.testing.assert_array_equal(obs["predicted_paths"][present, -1], obs["pedestrian_history"][present, -1])
     with pytest.raises(WrapperError, match="not one of"):
         wrap(gym.make("crossing_env/Crossing-v0", scenario="zebra_case1"), "none", "not-installed")
+
+
+def test_a_plug_in_is_a_row_of_the_grid_beside_the_built_ins(tmp_path: Path) -> None:
+    out = tmp_path / "grid"
+    grid = f"predictor=cvm,{PLUGIN}:Steady"
+    assert main([*ARGS, "--no-progress", "--grid", grid, "--out", str(out)]) == 0
+    table = (out / "value_of_prediction.md").read_text()
+    assert f"{PLUGIN}:Steady" in table and "cvm" in table
