@@ -18,6 +18,7 @@ Privileged forecasters (the oracles) declare it in their spec and are handed the
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
@@ -192,6 +193,10 @@ class Forecaster(Protocol):
         """The forecast for the step `inputs` describes."""
 
 
+_SUM, _MIN, _MAX = np.add.reduce, np.minimum.reduce, np.maximum.reduce
+"""The reductions the checks run every step, called as ufuncs (without the array methods' wrappers)."""
+
+
 def _array(name: str, field: str, value: Any, shape: tuple[int, ...]) -> np.ndarray:
     """`value` as a real array of `shape`."""
     try:
@@ -208,15 +213,16 @@ def _array(name: str, field: str, value: Any, shape: tuple[int, ...]) -> np.ndar
 def _check(name: str, field: str, value: Any, shape: tuple[int, ...], rows: np.ndarray) -> np.ndarray:
     """`value` as a real array of `shape`, finite in the present rows (the leading axis is the slots)."""
     arr = _array(name, field, value, shape)
-    # Every slot finite is the common case (one reduction); only then look at the present rows alone.
-    if not np.isfinite(arr).all() and not np.isfinite(arr[rows]).all():
+    # Every slot finite is the common case: a finite sum says so in one reduction (NaN and inf propagate;
+    # an overflow to inf only sends a finite array to the exact check below, on the present rows).
+    if not math.isfinite(_SUM(arr, axis=None)) and not np.isfinite(arr[rows]).all():
         raise ForecastError(f"forecaster {name!r}: {field} is NaN or infinite for a present pedestrian")
     return arr
 
 
 def _check_probability(name: str, field: str, value: Any, n: int, rows: np.ndarray) -> None:
     arr = _array(name, field, value, (n,))
-    if not arr.size or (arr.min() >= 0.0 and arr.max() <= 1.0):  # NaN fails both comparisons
+    if not arr.size or (_MIN(arr) >= 0.0 and _MAX(arr) <= 1.0):  # NaN fails both comparisons
         return
     mine = arr[rows]
     if not np.isfinite(mine).all():

@@ -189,13 +189,10 @@ class ForecastObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         """``predicted_paths``, ``predicted_samples`` and ``sample_weights`` of a checked forecast."""
         spec, bound = self.forecast_spec, self.bound
         paths = np.asarray(forecast.paths, dtype=np.float32)
-        if forecast.weights is None:
-            weights = np.broadcast_to(np.float32(1.0 / spec.samples), paths.shape[:2])
-        else:
-            weights = np.asarray(forecast.weights, dtype=np.float32)
+        weights = None if forecast.weights is None else np.asarray(forecast.weights, dtype=np.float32)
         if spec.mode:
             best = np.asarray(forecast.mode, dtype=np.float32)
-        elif spec.samples == 1 or forecast.weights is None:
+        elif spec.samples == 1 or weights is None:
             best = paths[:, 0]
         else:
             best = paths[np.arange(len(paths)), np.argmax(weights, axis=1)]
@@ -207,7 +204,12 @@ class ForecastObservation(gym.ObservationWrapper, gym.utils.RecordConstructorArg
         else:
             samples = np.where(where[:, None], paths, np.float32(0.0))
             out[PREDICTED_SAMPLES_KEY] = np.clip(samples, -bound, bound)
-        out[SAMPLE_WEIGHTS_KEY] = np.where(present[:, None], weights, np.float32(0.0))
+        if weights is None:  # equal weights: 1 / S in a present slot
+            out[SAMPLE_WEIGHTS_KEY] = np.repeat(
+                present[:, None] * np.float32(1.0 / spec.samples), spec.samples, 1
+            )
+        else:
+            out[SAMPLE_WEIGHTS_KEY] = np.where(present[:, None], weights, np.float32(0.0))
 
     def kernel_to_compile(self) -> Callable[[], None] | None:
         """The forecaster's compile step to run ahead (`crossing_eval.tasks.warm_up`), None where none."""
