@@ -365,15 +365,19 @@ def _preflight(args: argparse.Namespace, tasks: Sequence[EpisodeTask]) -> None:
     # The envs are kept in this process's cache (`crossing_eval.tasks.cached_env`): a run small enough to
     # stay in this process (see `in_process`) starts its first episode with them, models already loaded.
     scenario = args.scenarios[0]
-    for intention, predictor in sorted({(t.intention, t.predictor) for t in tasks}):
+    combos = sorted({(t.intention, t.predictor) for t in tasks})
+    for intention, predictor in combos:
         cached_env(scenario, intention=intention, predictor=predictor)
-        if plugin_target(intention) or plugin_target(predictor):
-            _try_plugins(scenario, intention, predictor, args.seed)
+    # The trials run on fresh envs (one per combination): the cached ones stay as the episodes find them.
     wrappers = {t.policy: (t.intention, t.predictor) for t in reversed(tasks)}  # each policy's first
     envs: dict[tuple[str, str], Any] = {}
     try:
+        for combo in combos:
+            if plugin_target(combo[0]) or plugin_target(combo[1]):
+                envs[combo] = make_env(scenario, *combo)[0]
+                _try_plugins(envs[combo], combo, args.seed)
         for policy in args.policies:
-            if wrappers[policy] not in envs:  # a fresh env: the cached ones stay as the episodes find them
+            if wrappers[policy] not in envs:
                 envs[wrappers[policy]] = make_env(scenario, *wrappers[policy])[0]
             _try_policy(policy, envs[wrappers[policy]], args.seed, blind=not args.reveal_scenario)
     finally:
@@ -414,16 +418,15 @@ PLUGIN_TRIAL_STEPS = 100
 """Steps (10 s) the preflight runs plug-in predictors for, stopping at the first pedestrian they forecast."""
 
 
-def _try_plugins(scenario: str, intention: str, predictor: str, seed: int) -> None:
-    """Run a fresh env under plug-in predictors until they have forecast a pedestrian (at most 10 s).
+def _try_plugins(env: Any, names: tuple[str, str], seed: int) -> None:
+    """Run `env` under plug-in predictors until they have forecast a pedestrian (at most 10 s).
 
     A plug-in that raises or returns a malformed forecast is caught here, before the first episode.
 
     Raises:
         WrapperError: the plug-in raised or returned a malformed forecast (one line naming it).
     """
-    env, _ = make_env(scenario, intention=intention, predictor=predictor)
-    names = " and ".join(n for n in (intention, predictor) if plugin_target(n))
+    plugins = " and ".join(n for n in names if plugin_target(n))
     try:
         obs, _ = env.reset(seed=seed)
         for _ in range(PLUGIN_TRIAL_STEPS):
@@ -435,9 +438,7 @@ def _try_plugins(scenario: str, intention: str, predictor: str, seed: int) -> No
             if terminated or truncated:
                 break
     except Exception as exc:  # the plug-in's code: any error becomes one line naming it
-        raise WrapperError(f"predictor {names}: {type(exc).__name__}: {exc}") from exc
-    finally:
-        env.close()
+        raise WrapperError(f"predictor {plugins}: {type(exc).__name__}: {exc}") from exc
 
 
 def _run(

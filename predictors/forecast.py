@@ -270,8 +270,7 @@ def validate_forecast(name: str, forecast: Any, spec: ForecastSpec, inputs: Fore
 
 def validate_plan_paths(name: str, value: Any, spec: ForecastSpec, inputs: ForecastInput) -> np.ndarray:
     """The (P, N, H, 2) array ``forecast_plans`` returned, checked as `validate_forecast` checks paths."""
-    shape = (len(spec.plans), inputs.present.shape[0], spec.horizon, 2)
-    arr = _check(name, "plan paths", value, shape, slice(0, 0))
+    arr = _array(name, "plan paths", value, (len(spec.plans), inputs.present.shape[0], spec.horizon, 2))
     if not np.isfinite(arr[:, inputs.present]).all():
         raise ForecastError(
             f"forecaster {name!r}: plan paths have NaN or infinite values for present pedestrians"
