@@ -8,9 +8,12 @@ inside worker processes and Ray tasks, which get the spec string, never a live o
 
 - a name registered with `register_policy` in this process,
 - a name from the ``crossing_env.policies`` entry-point group of installed packages,
-- ``"pkg.module:attr"``: a policy class whose constructor takes its config (``attr.config_class``, a
-  `DrivingConfig` subclass, as the built-ins) or a factory (a function or class) called with those of
-  ``scenario=`` and ``dt=`` that it names (all with ``**kwargs``; none for a no-argument constructor),
+- ``"pkg.module:attr"`` (a module in the current folder is found, as ``python -m`` finds it): a plain
+  function ``attr(obs) -> action`` (or a policy object) that is the policy itself; a policy class whose
+  constructor takes its config (``attr.config_class``, a `DrivingConfig` subclass, as the built-ins); or a
+  factory (a function or class) called with those of ``scenario=`` and ``dt=`` that it names (all with
+  ``**kwargs``; none for a no-argument constructor). A callable that requires a positional argument other
+  than those two is the policy; one that requires none is a factory.
 - ``"sb3:path/model.zip"``: a Stable-Baselines3 model (`agents.sb3.SB3Policy`, the ``rl`` extra),
 - ``"mlp:path/policy.npz"``: a learned policy stored as data (`agents.mlp`, numpy only), deployed through
   the yielding shield when the file says it was trained through it.
@@ -19,7 +22,6 @@ inside worker processes and Ray tasks, which get the spec string, never a live o
 from __future__ import annotations
 
 import hashlib
-import importlib
 import inspect
 import json
 from collections.abc import Callable
@@ -44,6 +46,7 @@ from agents.config import (
 from agents.policy import ConstantAction, Policy, RandomAction, as_policy
 from agents.predictive import PredictiveYielding
 from agents.yielding import AlwaysCautious, YieldingPolicy
+from crossing_common.imports import import_plugin_module
 from scenarios.config import ScenarioConfig, TrafficConfig
 
 ENTRY_POINT_GROUP = "crossing_env.policies"
@@ -56,6 +59,11 @@ SHIPPED_POLICIES: dict[str, Path] = {
 }
 """Learned policies shipped as data (`agents.mlp`; numpy only), trained by ``studies/safe_rl.py``: PPO acting
 through the yielding shield, and PPO-Lagrangian (no rule in the loop)."""
+SHIPPED_SUMMARIES: dict[str, str] = {
+    "ppo_shielded": "Learned: PPO acting through the yielding shield, shipped as data",
+    "ppo_lagrangian": "Learned: PPO-Lagrangian, no rule in the loop, shipped as data",
+}
+"""One line on each shipped learned policy (`crossing-eval --list`)."""
 DEFAULT_LEARNED = "ppo_shielded"
 """The shipped learned policy in `crossing-eval`'s default table (the better of the two on the selection
 episodes; ``docs/rl.md``)."""
@@ -137,7 +145,9 @@ def _shipped(name: str) -> Callable[..., Policy]:
         verify_shipped_policy_files()
         return mlp_policy(SHIPPED_POLICIES[name], scenario, dt)
 
-    factory.__doc__ = f"The shipped ``{name}`` ({SHIPPED_POLICIES[name].name}), checked against the manifest."
+    factory.__doc__ = (
+        f"{SHIPPED_SUMMARIES[name]} ({SHIPPED_POLICIES[name].name}, checked against the manifest)."
+    )
     return factory
 
 
@@ -172,13 +182,14 @@ def register_policy(
     _REGISTRY[name] = PolicyEntry(factory, config, uses_predictors)
 
 
-def _entry_points() -> dict[str, str]:
+def installed_policies() -> dict[str, str]:
+    """Installed plug-in policies: entry-point name → ``"pkg.module:attr"`` (nothing imported)."""
     return {ep.name: ep.value for ep in entry_points(group=ENTRY_POINT_GROUP)}
 
 
 def policy_names() -> tuple[str, ...]:
     """Every name `make_policy` accepts now: registered ones, then installed entry points."""
-    return tuple(dict.fromkeys([*_REGISTRY, *_entry_points()]))
+    return tuple(dict.fromkeys([*_REGISTRY, *installed_policies()]))
 
 
 def _import_attr(spec: str) -> Any:
@@ -186,7 +197,7 @@ def _import_attr(spec: str) -> Any:
     if not module or not attr:
         raise ValueError(f"policy {spec!r}: expected 'pkg.module:attr'")
     try:
-        obj: Any = importlib.import_module(module)
+        obj: Any = import_plugin_module(module)
     except ImportError as exc:
         raise ValueError(f"policy {spec!r}: cannot import module {module!r} ({exc})") from None
     except Exception as exc:  # the plug-in's own import-time code raised: one line, not a traceback
@@ -206,7 +217,39 @@ def _plugin_entry(obj: Any) -> PolicyEntry:
     cfg = getattr(obj, "config_class", None)
     if isinstance(obj, type) and isinstance(cfg, type) and issubclass(cfg, DrivingConfig):
         return PolicyEntry(obj, cfg)
+    if not isinstance(obj, type) and _takes_observation(obj):
+        return PolicyEntry(_itself(obj), None, uses_predictors=bool(getattr(obj, "uses_predictors", False)))
     return PolicyEntry(obj, None)
+
+
+FACTORY_KEYWORDS = frozenset({"scenario", "dt"})
+"""The keywords a plug-in factory may name (`_call_factory`)."""
+
+
+def _takes_observation(obj: Any) -> bool:
+    """Whether `obj` (a function or instance, not a class) is the policy itself: ``obj(obs) -> action``.
+
+    It is when it requires a positional argument other than the factory keywords: ``def cruise(obs)``.
+    A callable that requires nothing (or only ``scenario`` / ``dt``) is a factory, called to make one.
+    """
+    try:
+        params = inspect.signature(obj).parameters.values()
+    except (TypeError, ValueError):  # no signature to read: the documented factory protocol
+        return False
+    positional = (inspect.Parameter.POSITIONAL_ONLY, inspect.Parameter.POSITIONAL_OR_KEYWORD)
+    return any(
+        p.kind in positional and p.default is inspect.Parameter.empty and p.name not in FACTORY_KEYWORDS
+        for p in params
+    )
+
+
+def _itself(policy: Callable[..., Any]) -> Callable[..., Any]:
+    """A factory that hands back `policy` itself (a plain ``obs -> action`` function or policy object)."""
+
+    def factory(scenario: ScenarioConfig | None = None, dt: float | None = None) -> Any:
+        return policy
+
+    return factory
 
 
 def _file_entry(
@@ -275,7 +318,7 @@ def policy_entry(name: str) -> PolicyEntry:
         return _file_entry(name, "sb3:path/to/model.zip", _sb3_policy, None)
     if name.startswith("mlp:"):
         return _file_entry(name, "mlp:path/to/policy.npz", mlp_policy, False)
-    eps = _entry_points()
+    eps = installed_policies()
     if name in eps:
         return _plugin_entry(_import_attr(eps[name]))
     if ":" in name:

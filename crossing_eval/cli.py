@@ -24,6 +24,7 @@ from crossing_common.cli import DefaultsHelpFormatter, int_at_least, positive_fl
 from crossing_common.folders import OutputFolderError, StagedFolder
 from crossing_env.observation import PEDESTRIANS_KEY, PedestrianColumn
 from crossing_eval.grid import GRID_MARKER, make_grid_tasks, parse_grid, write_grid_outputs
+from crossing_eval.listing import ListAction
 from crossing_eval.ncap import format_ncap_table, ncap_rows
 from crossing_eval.outputs import import_plotting, write_outputs
 from crossing_eval.plugins import (
@@ -58,7 +59,7 @@ from rollout.wrappers import (
     intention_names,
     plugin_target,
 )
-from scenarios import ScenarioError, list_scenarios, load_scenario
+from scenarios import ScenarioError, available_scenarios, list_scenarios, load_scenario
 
 DEFAULT_EPISODES = 5
 """Episodes per (scenario, policy) in the default run: 12 scenarios x 5 seeds x 7 policies = 420 episodes."""
@@ -107,10 +108,16 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=DefaultsHelpFormatter,
     )
     parser.add_argument(
+        "--list",
+        action=ListAction,
+        help="list every scenario, policy, predictor and intention model with one line each, and exit",
+    )
+    parser.add_argument(
         "--scenarios",
         type=_names,
         default=None,
-        help="comma-separated built-in names or scenario files (default: all built-in)",
+        help="comma-separated built-in names or scenario .toml files (default: all built-in). Built-in:"
+        f" {', '.join(available_scenarios())} (--list describes each)",
     )
     parser.add_argument(
         "--policies",

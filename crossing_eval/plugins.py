@@ -125,7 +125,8 @@ def policies_help() -> str:
     return (
         f"comma-separated policies (default: {', '.join(POLICIES)})."
         f" Names: {', '.join(policy_names())};"
-        " also 'pkg.module:attr' (a policy class with config_class, or a factory(scenario=, dt=)),"
+        " also 'pkg.module:attr' (a function obs -> action, a policy class with config_class, or a"
+        " factory(scenario=, dt=); a module in the current folder is found),"
         " installed entry points of the group 'crossing_env.policies', and 'sb3:path/model.zip'"
         " (Stable-Baselines3, with model.vecnormalize.npz beside it), 'mlp:path/policy.npz' (a learned policy"
         " stored as data, numpy only)"

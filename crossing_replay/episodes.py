@@ -17,6 +17,7 @@ from agents import make_policy as agents_make_policy
 from crossing_replay.errors import ReplayError
 from rollout import INTENTION_WRAPPERS, NONE, Frame, WrapperError, build_policy, make_env, wrappers_for
 from rollout import frames as run_episode
+from scenarios import ScenarioError
 from scenarios.config import EnvConfig, ScenarioConfig
 
 __all__ = ["INTENTION_WRAPPERS", "Frame", "env_for_policy", "make_policy", "run_episode"]
@@ -65,6 +66,8 @@ def env_for_policy(
         env, _ = make_env(scenario, intention, predictor, config, render_mode)
     except WrapperError as exc:
         raise ReplayError(f"--intention/--predictor: {exc}") from exc
+    except ScenarioError as exc:  # before ValueError: the scenario is the problem, not the policy
+        raise ReplayError(f"--scenario: {exc}") from exc
     except ValueError as exc:  # an unknown policy spec
         raise ReplayError(f"--policy {policy!r}: {exc}") from exc
     return env, (None if predictor == NONE else predictor), (None if intention == NONE else intention)

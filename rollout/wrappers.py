@@ -15,14 +15,13 @@ with no arguments, once per env (`plugin_target`).
 
 from __future__ import annotations
 
-import importlib
-import os
-import sys
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
+
+from crossing_common.imports import import_plugin_module
 
 NONE = "none"
 """The explicit opt-out: no wrapper of this kind."""
@@ -129,7 +128,8 @@ def predictor_names() -> tuple[str, ...]:
     return (*TRAJECTORY_WRAPPERS, NONE)
 
 
-def _entry_points() -> dict[str, str]:
+def installed_predictors() -> dict[str, str]:
+    """Installed plug-in predictors: entry-point name → ``"pkg.module:attr"`` (nothing imported)."""
     return {ep.name: ep.value for ep in entry_points(group=ENTRY_POINT_GROUP)}
 
 
@@ -143,33 +143,17 @@ def plugin_target(name: str) -> str | None:
     A name is a plug-in when it has that form or is an installed entry point of `ENTRY_POINT_GROUP`
     (built-in names, degraded oracles and checkpoint files are resolved before).
     """
-    found = _entry_points().get(name)
+    found = installed_predictors().get(name)
     if found is not None:
         return found
     module, sep, attr = name.partition(":")
     return name if sep and _dotted(module) and _dotted(attr) else None
 
 
-def _import(module: str) -> Any:
-    """Import `module`, looking in the current folder too, as ``python -m`` would.
-
-    The folder is appended to ``sys.path`` only when the module is not found otherwise, so installed
-    modules keep precedence, and worker processes started afterwards find it as well.
-    """
-    try:
-        return importlib.import_module(module)
-    except ModuleNotFoundError as exc:
-        here = os.getcwd()
-        if exc.name != module.split(".")[0] or here in sys.path or "" in sys.path:
-            raise
-        sys.path.append(here)
-        return importlib.import_module(module)
-
-
 def _load(target: str, what: str) -> Any:
     module, _, attr = target.partition(":")
     try:
-        obj: Any = _import(module)
+        obj: Any = import_plugin_module(module)
         for part in attr.split("."):
             obj = getattr(obj, part)
     except (ImportError, AttributeError) as exc:

@@ -37,11 +37,12 @@ class ScenarioError(ValueError):
 
     def __init__(self, source: str, problems: list[Problem]) -> None:
         self.source = source
-        """The file path (or `<string>` / `<config>`) the problems were found in."""
+        """The file path (or `<string>` / `<config>`) the problems were found in; "" for an unknown name
+        (no file to name)."""
         self.problems = tuple(problems)
         """Every problem found, in schema order."""
         if len(problems) == 1:
-            message = f"{source}: {problems[0]}"
+            message = f"{source}: {problems[0]}" if source else str(problems[0])
         else:
             lines = "\n".join(f"  - {p}" for p in problems)
             message = f"{source}: {len(problems)} problems:\n{lines}"

@@ -73,7 +73,7 @@ def resolve_scenario_path(name_or_path: str | os.PathLike[str]) -> Path:
         hint = difflib.get_close_matches(text, names, n=1)
         msg = f"unknown scenario {text!r}" + (f" (did you mean {hint[0]!r}?)" if hint else "")
         msg += "; available: " + ", ".join(names) + " (or give a path to a .toml file)"
-        raise ScenarioError(str(path), [Problem("", None, msg)])
+        raise ScenarioError("", [Problem("", None, msg)])  # no file to name: the name is the problem
     return path
 
 

@@ -57,3 +57,35 @@ def test_ppo_example_help_shows_defaults(capsys, monkeypatch):
         module.parse_args(["--help"])
     text = " ".join(capsys.readouterr().out.split())
     assert "(default: 200000)" in text and "(default: 4)" in text and "(default: runs/ppo)" in text
+
+
+def test_list_names_every_choice_with_a_line_and_imports_no_plugin(monkeypatch, capsys):
+    """``crossing-eval --list``: scenarios, policies, predictors and intention models, one line each."""
+    import agents.registry as registry
+    import rollout.wrappers as wrappers
+    from agents.registry import policy_names
+    from crossing_eval.cli import main
+    from scenarios import list_scenarios
+
+    monkeypatch.setattr(registry, "installed_policies", lambda: {"their_car": "not_installed_xyz:Car"})
+    monkeypatch.setattr(wrappers, "installed_predictors", lambda: {"their_model": "not_installed_xyz:M"})
+    with pytest.raises(SystemExit) as exc:
+        main(["--policies", "no_such_policy", "--list"])  # --list wins, like --help
+    assert exc.value.code == 0
+    out = capsys.readouterr().out
+    flat = " ".join(out.split())
+    for name, description in list_scenarios().items():
+        assert f" {name} {' '.join(description.rstrip('.').split())}" in flat
+    for name in (*policy_names(), "s-cgru", "cvm", "oracle-noise=SIGMA", "qlb", "classical", "learned"):
+        assert f" {name} " in flat, name
+    assert "not_installed_xyz:Car" in out and "not_installed_xyz:M" in out  # listed, never imported
+    assert "`" not in out
+    assert max(len(line) for line in out.splitlines()) <= 100
+
+
+def test_help_names_the_built_in_scenarios(capsys):
+    from scenarios import available_scenarios
+
+    text = " ".join(_help(eval_parser(), [], capsys).split())
+    for name in available_scenarios():
+        assert name in text, name

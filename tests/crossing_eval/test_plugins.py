@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import sys
 from importlib.metadata import EntryPoint
 from pathlib import Path
 
@@ -34,6 +35,34 @@ def test_module_attr_factory_and_class_protocol():
         make_policy(f"{PLUGIN}:nope")
     with pytest.raises(ValueError, match="cannot import module"):
         make_policy("no_such_module_xyz:policy")
+
+
+def test_a_plain_function_is_the_policy_and_a_factory_is_called():
+    from tests.crossing_eval import plugin_policies as mod
+
+    obs = {"ego": np.zeros(6, np.float32)}
+    cruise = make_policy(f"{PLUGIN}:cruise")  # def cruise(obs): the policy itself, never called to build
+    assert isinstance(cruise, FunctionPolicy) and cruise.function is mod.cruise
+    assert cruise(obs)[0] == pytest.approx(0.25)
+    assert make_policy(f"{PLUGIN}:cruise_at")(obs)[0] == pytest.approx(0.5)  # def cruise_at(obs, gain=2)
+    assert not registry._takes_observation(mod.gentle_brake)  # (scenario=None, dt=None): a factory
+    assert not registry._takes_observation(lambda scenario: None)  # requires only a factory keyword
+    assert not registry._takes_observation(lambda **kw: None)
+    assert registry._takes_observation(lambda o, /: None)
+
+
+def test_a_plain_function_in_the_current_folder(tmp_path: Path, monkeypatch, capsys):
+    """The README's newcomer: ``mypol.py`` with ``def cruise(obs)`` beside them, no PYTHONPATH."""
+    name = f"newcomer_{tmp_path.name.replace('-', '_')}"
+    (tmp_path / f"{name}.py").write_text(
+        "import numpy as np\n\ndef cruise(obs):\n    return np.array([0.2], dtype=np.float32)\n"
+    )
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "path", [p for p in sys.path if p not in ("", str(tmp_path))])
+    code = main([*ARGS[:2], "--episodes", "1", "--no-progress", "--policies", f"{name}:cruise,yielding"])
+    assert code == 0
+    assert f"{name}:cruise" in capsys.readouterr().out
+    assert (tmp_path / "crossing-eval-results").is_dir()
 
 
 def test_register_policy_and_entry_points(monkeypatch):

@@ -63,7 +63,7 @@ def test_a_broken_plug_in_is_one_line_naming_it_and_exit_2(
 def test_an_installed_entry_point_is_a_predictor_name(monkeypatch: pytest.MonkeyPatch) -> None:
     import gymnasium as gym
 
-    monkeypatch.setattr(wrappers, "_entry_points", lambda: {"steady": f"{PLUGIN}:Steady"})
+    monkeypatch.setattr(wrappers, "installed_predictors", lambda: {"steady": f"{PLUGIN}:Steady"})
     env, used = wrap(gym.make("crossing_env/Crossing-v0", scenario="zebra_case1"), "none", "steady")
     obs, _ = env.reset(seed=0)
     present = obs["pedestrians"][:, 0] > 0.5

@@ -273,6 +273,12 @@ def test_builtin_policies() -> None:
     ("argv", "message"),
     [
         (["record", "--scenario", "no_such_scenario", "--out", "{out}"], "no_such_scenario"),
+        # a misspelt name blames --scenario, suggests the name and names no file that does not exist
+        (
+            ["record", "--scenario", "zebra_cse1", "--out", "{out}"],
+            "--scenario: unknown scenario 'zebra_cse1'",
+        ),
+        (["video", "--scenario", "zebra_cse1", "--out", "{dir}/x.gif"], "did you mean 'zebra_case1'"),
         (["record", "--scenario", SCENARIO, "--policy", "nope", "--out", "{out}"], "nope"),
         (["record", "--scenario", SCENARIO, "--out", "{dir}/x.txt"], ".rrd"),
         (["record", "--scenario", SCENARIO, "--out", "{dir}/missing/x.rrd"], "does not exist"),
@@ -287,6 +293,7 @@ def test_cli_bad_input_exits_2(
     assert main(args) == 2
     err = capsys.readouterr().err
     assert "error" in err and message in err
+    assert "--policy 'constant'" not in err and "zebra_cse1.toml" not in err
     assert list(tmp_path.iterdir()) == []  # nothing written, no temporary left behind
 
 
