@@ -2,7 +2,8 @@
 
 With no arguments it runs every built-in scenario x a fixed seed set x every policy in `agents.POLICIES`
 (predictor wrappers on for the policies that use them), prints a table, and writes the files listed in
-`crossing_eval.outputs` into the output folder (default ``./crossing-eval-results``). The numbers are
+`crossing_eval.outputs` into the output folder (default: a new dated folder per run under
+``./crossing-eval-results``, ``latest`` pointing at the newest; ``--out`` names one exactly). The numbers are
 identical whatever ``--workers`` or ``--backend`` (see `crossing_eval.tasks`).
 """
 
@@ -12,6 +13,7 @@ import argparse
 import gc
 import os
 import sys
+import textwrap
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -22,6 +24,7 @@ import numpy as np
 from agents.sb3 import ModelFileError
 from crossing_common.cli import DefaultsHelpFormatter, int_at_least, positive_float
 from crossing_common.folders import OutputFolderError, StagedFolder
+from crossing_common.runs import LATEST, claim_run_folder, point_latest, release_if_empty
 from crossing_env.observation import PEDESTRIANS_KEY, PedestrianColumn
 from crossing_eval.grid import GRID_MARKER, make_grid_tasks, parse_grid, write_grid_outputs
 from crossing_eval.listing import ListAction
@@ -48,7 +51,7 @@ from crossing_eval.runners import (
     run_tasks,
 )
 from crossing_eval.scoring import REFERENCE_POLICY, reference_tasks
-from crossing_eval.summary import format_table, summarise
+from crossing_eval.summary import HEADLINE_COLUMNS, HEADLINE_WIDTH, TABLE_COLUMNS, format_table, summarise
 from crossing_eval.tasks import EpisodeRecord, EpisodeTask, cached_env, make_tasks
 from predictors.forecast import ForecastError
 from rollout import build_policy, checked_action, make_env
@@ -143,8 +146,9 @@ def build_parser() -> argparse.ArgumentParser:
         "--out",
         type=Path,
         default=None,
-        help=f"output folder, replaced whole at the end of the run (an earlier run's folder or an empty one);"
-        f" default {DEFAULT_OUT}, or {DEFAULT_GRID_OUT} with --grid",
+        help=f"output folder, used exactly and replaced whole at the end of the run (an earlier run's folder"
+        f" or an empty one); default: a new dated folder per run under {DEFAULT_OUT}/ (or {DEFAULT_GRID_OUT}/"
+        f" with --grid), with {LATEST} pointing at the newest, so no run replaces another",
     )
     parser.add_argument(
         "--backend",
@@ -196,6 +200,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="tell policies the whole scenario (its name, pedestrians, traffic, conflict) when they are"
         " built; by default they are evaluated blind, told only the road, the crossing and their car"
         " (docs/evaluation.md, 'What a policy may know')",
+    )
+    parser.add_argument(
+        "--full-table",
+        action="store_true",
+        help="print every column (collisions, TTC, PET, DRAC, hard brakes, speeding...), not the headline"
+        " table; both are written to the output folder (table.txt, table_full.txt, report.md)",
     )
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return parser
@@ -259,6 +269,7 @@ def _parse(parser: argparse.ArgumentParser, argv: Sequence[str] | None) -> argpa
         if args.policies is None:
             args.policies = list(GRID_POLICIES)
     args.policies = _resolve_policies(parser, args.policies)
+    args.keep_runs = args.out is None  # the default: each run its own dated folder under the parent
     if args.out is None:
         args.out = Path(DEFAULT_GRID_OUT if args.grid is not None else DEFAULT_OUT)
     if args.address is not None and args.backend != "ray":
@@ -319,16 +330,27 @@ def main(argv: Sequence[str] | None = None) -> int:
         _preflight(args, tasks)
     except (WrapperError, ModelFileError, ValueError, TypeError, OSError) as exc:
         return _fail(str(exc))
+    if args.keep_runs:
+        try:
+            args.out = claim_run_folder(args.out)
+        except OSError as exc:
+            return _fail(f"output folder {str(args.out)!r}: {exc.strerror or exc}")
     try:
-        staged = StagedFolder(
-            args.out, marker=GRID_MARKER if args.grid is not None else "results.json", tool="crossing-eval"
-        )
-    except OutputFolderError as exc:
-        return _fail(f"argument --out: {exc}")
-    try:
-        code = _run(args, labels, staged, tasks)
+        try:
+            staged = StagedFolder(
+                args.out,
+                marker=GRID_MARKER if args.grid is not None else "results.json",
+                tool="crossing-eval",
+            )
+        except OutputFolderError as exc:
+            return _fail(f"argument --out: {exc}")
+        try:
+            code = _run(args, labels, staged, tasks)
+        finally:
+            staged.discard()  # a no-op after a commit; drops half-written output on any error or Ctrl-C
     finally:
-        staged.discard()  # a no-op after a commit; drops half-written output on any error or Ctrl-C
+        if args.keep_runs:
+            release_if_empty(args.out)  # the run failed before writing: no empty dated folder left
     if getattr(args, "exit_now", False):  # Ray's own threads may still retry a connection: do not wait
         sys.stdout.flush()
         sys.stderr.flush()
@@ -496,9 +518,9 @@ def _run(
     wall = time.perf_counter() - t0
     if args.grid is not None:
         table, files = write_grid_outputs(records, args, staged.path)
-        staged.commit()
+        where = _commit(args, staged)
         print(table)
-        print(f"{len(records)} episodes in {wall:.1f} s; wrote {', '.join(files)} to {args.out}/")
+        print(f"{len(records)} episodes in {wall:.1f} s; wrote {', '.join(files)} to {where}")
         return 0
     ran = len(records)
     references = [r for r in records if r.task.policy not in args.policies]
@@ -507,18 +529,31 @@ def _run(
     settings = _settings(args, records)
     settings["scenario_names"] = labels
     files = write_outputs(records, summary, settings, staged.path, references)
-    staged.commit()
-    print(format_table(summary, args.policies))
+    where = _commit(args, staged)
+    print(format_table(summary, args.policies, TABLE_COLUMNS if args.full_table else HEADLINE_COLUMNS))
     ncap = ncap_rows(records)
     if ncap:
         print("\n" + format_ncap_table(ncap))
     worst = sum(f.startswith("worst/") for f in files)
-    print(
-        f"\n{ran} episodes in {wall:.1f} s ({ran / max(wall, 1e-9):.2f} episodes/s);"
-        f" wrote {', '.join(f for f in files if not f.startswith('worst/'))} and {worst} worst-episode"
-        f" log(s) to {args.out}/"
+    done = (
+        f"{ran} episodes in {wall:.1f} s ({ran / max(wall, 1e-9):.2f} episodes/s); wrote"
+        f" {', '.join(f for f in files if not f.startswith('worst/') and f != 'table_full.txt')},"
+        f" table_full.txt (every column) and {worst} worst-episode log(s) to {where}"
     )
+    print("\n" + textwrap.fill(done, HEADLINE_WIDTH, break_long_words=False, break_on_hyphens=False))
     return 0
+
+
+def _commit(args: argparse.Namespace, staged: StagedFolder) -> str:
+    """Swap the outputs in; with kept runs point ``latest`` at this one. Returns where they are (to print)."""
+    staged.commit()
+    if not args.keep_runs:
+        return f"{args.out}/"
+    note = point_latest(args.out)
+    if note:
+        print(f"crossing-eval: {note}", file=sys.stderr)
+        return f"{args.out}/"
+    return f"{args.out}/ ({args.out.parent / LATEST} points at it)"
 
 
 if __name__ == "__main__":

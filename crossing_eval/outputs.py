@@ -6,8 +6,8 @@
   ``per_scenario.csv`` (one row per scenario and policy); missing or undefined values are empty cells;
 - ``ncap.csv`` (runs with an ``ncap_*`` scenario: one row per scenario, policy and test speed, with the
   outcomes, Euro NCAP colours, points and NeuroNCAP score of `crossing_eval.ncap`);
-- ``report.md`` (per-policy and per-scenario tables and the column definitions, `crossing_eval.report`)
-  and ``table.txt`` (the printed table);
+- ``report.md`` (per-policy and per-scenario tables and the column definitions, `crossing_eval.report`),
+  ``table.txt`` (the headline table `crossing-eval` prints) and ``table_full.txt`` (every column);
 - ``safety_vs_efficiency.png`` (a legend instead of point labels, so no label overlaps another; policies
   at the same point are drawn side by side) and ``min_ttc.png`` (ECDF per policy; each curve has its own
   dash pattern and marker, wider curves under narrower ones, and the legend names identical curves);
@@ -38,7 +38,7 @@ from crossing_common.processes import fork_is_safe
 from crossing_env.safety import json_safe
 from crossing_eval.ncap import NCAP_CSV_FIELDS, ncap_csv_rows, ncap_markdown, ncap_rows
 from crossing_eval.report import csv_cell, per_scenario_rows, report_markdown, scenario_labels
-from crossing_eval.summary import format_table
+from crossing_eval.summary import HEADLINE_COLUMNS, format_table
 from crossing_eval.tasks import EpisodeRecord
 from crossing_replay.episode_log import save_episode_log
 
@@ -452,13 +452,16 @@ def write_outputs(
         cells = [[csv_cell(v) for v in row] for row in ncap_csv_rows(ncap)]
         write_bytes_atomic(out / "ncap.csv", _csv_text(NCAP_CSV_FIELDS, cells).encode("utf-8"))
     write_bytes_atomic(out / "report.md", report.encode("utf-8"))
-    write_bytes_atomic(out / "table.txt", (format_table(summary, policies) + "\n").encode("utf-8"))
+    headline = format_table(summary, policies, HEADLINE_COLUMNS)
+    write_bytes_atomic(out / "table.txt", (headline + "\n").encode("utf-8"))
+    write_bytes_atomic(out / "table_full.txt", (format_table(summary, policies) + "\n").encode("utf-8"))
     _plot(records, summary, policies, out)
     worst = save_worst(records, out)
     return [
         "results.json",
         "report.md",
         "table.txt",
+        "table_full.txt",
         "episodes.csv",
         "summary.csv",
         "per_scenario.csv",

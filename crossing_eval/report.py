@@ -13,7 +13,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from crossing_eval.summary import TABLE_COLUMNS, _row, by_score, format_world_health
+from crossing_eval.summary import HEADLINE_COLUMNS, TABLE_COLUMNS, _row, by_score, format_world_health
 from scenarios import load_scenario
 
 SCENARIO_CSV_FIELDS = (
@@ -138,8 +138,9 @@ def report_markdown(
 
 
 def definitions_markdown() -> list[str]:
-    """The definitions section: one bullet per table column (`crossing_eval.summary.TABLE_COLUMNS`)."""
-    lines = [f"- **{c.header}**: {c.definition}" for c in TABLE_COLUMNS]
+    """The definitions section: one bullet per column of the full and the headline table."""
+    headline_only = [c for c in HEADLINE_COLUMNS if c not in TABLE_COLUMNS]
+    lines = [f"- **{c.header}**: {c.definition}" for c in (*TABLE_COLUMNS, *headline_only)]
     lines.append(
         "- **world health**: contacts between background cars and pedestrians over every episode of the run"
         " (the ego is not involved), with the fraction of episodes that had one (95% Wilson interval)."

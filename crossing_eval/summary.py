@@ -8,6 +8,7 @@ ego is not part of), kept apart from the table.
 from __future__ import annotations
 
 import math
+import textwrap
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -31,6 +32,9 @@ class Column:
     header: str
     key: str | None
     definition: str
+    same_as: str | None = None
+    """The header of the full table's column whose cells this one shows (a shorter header for the
+    headline table); None: its own cells."""
 
 
 TABLE_COLUMNS: tuple[Column, ...] = (
@@ -138,7 +142,36 @@ TABLE_COLUMNS: tuple[Column, ...] = (
         " delay equal to its scenario's duration, so a policy that stops for good cannot look prompt.",
     ),
 )
-"""The table's columns, in order (the same in the printed table, ``table.txt`` and ``report.md``)."""
+"""The full table's columns, in order (``crossing-eval --full-table``, ``table_full.txt``, ``report.md``)."""
+
+SEPARATION_MARGIN = Column(
+    "min sep p5 m",
+    "min_separation_p5",
+    "Separation margin: the 5th percentile over episodes of each episode's minimum ego-pedestrian footprint"
+    " distance (m; negative = overlap): one episode in twenty passed closer. '-' = no pedestrian in any"
+    f" episode; a trailing '{CLOSE_MARK}' marks a pass closer than the {_CFG.clearance:g} m clearance.",
+)
+_BY_HEADER = {c.header: c for c in TABLE_COLUMNS}
+HEADLINE_COLUMNS: tuple[Column, ...] = (
+    _BY_HEADER["policy"],
+    _BY_HEADER["n"],
+    _BY_HEADER["score [95% CI]"],
+    _BY_HEADER["ped. at fault"],
+    _BY_HEADER["yield compl. (n)"],
+    SEPARATION_MARGIN,
+    _BY_HEADER["pass rate"],
+    Column(
+        "delay s",
+        "censored_mean_delay",
+        "The headline table's name for 'delay s (censored)' (episodes that never pass count at the"
+        " scenario's duration).",
+        same_as="delay s (censored)",
+    ),
+)
+"""The headline table `crossing-eval` prints (and ``table.txt``): the score first, then at-fault pedestrian
+collisions, compliance, a separation margin, pass rate and delay; under `HEADLINE_WIDTH` columns."""
+HEADLINE_WIDTH = 119
+"""Widest line of the headline table and its notes (policy names up to 26 characters): a terminal of 120."""
 
 
 def summarise(records: Sequence[EpisodeRecord], references: Sequence[EpisodeRecord] = ()) -> dict[str, Any]:
@@ -206,8 +239,14 @@ def _close(agg: dict[str, Any]) -> bool:
     return sep is not None and not math.isnan(sep) and sep < _CFG.clearance
 
 
-def _row(name: str, agg: dict[str, Any]) -> list[str]:
-    """The cells of one table row, in `TABLE_COLUMNS` order."""
+def _row(name: str, agg: dict[str, Any], columns: Sequence[Column] = TABLE_COLUMNS) -> list[str]:
+    """The cells of one table row, in `columns`' order."""
+    cells = _cells(name, agg)
+    return [cells[c.same_as or c.header] for c in columns]
+
+
+def _cells(name: str, agg: dict[str, Any]) -> dict[str, str]:
+    """Every cell of a policy's row, by column header (`TABLE_COLUMNS` and `SEPARATION_MARGIN`)."""
     lo, hi = agg["collision_ci95"]
     comp = agg["yield_compliance"]
     close = _close(agg)
@@ -215,8 +254,10 @@ def _row(name: str, agg: dict[str, Any]) -> list[str]:
     sep = f"{_fmt(agg['min_separation_min'])}{mark}/{_fmt(agg['min_separation_p50'])}"
     # A close pass marks the TTC too: "-" (never on a collision course) or a long TTC is no all-clear.
     ttc = f"{_fmt(agg['min_ttc_p5'])}/{_fmt(agg['min_ttc_p50'])}{mark}"
+    p5 = agg["min_separation_p5"]
+    margin_mark = CLOSE_MARK if p5 is not None and not math.isnan(p5) and p5 < _CFG.clearance else ""
     s_lo, s_hi = agg["score_ci95"]
-    return [
+    cells = [
         name,
         str(agg["episodes"]),
         f"{agg['score_mean']:.3f} [{s_lo:.3f}, {s_hi:.3f}]",
@@ -235,14 +276,23 @@ def _row(name: str, agg: dict[str, Any]) -> list[str]:
         _fmt(agg["pass_rate"]),
         _fmt(agg["censored_mean_delay"]),
     ]
+    out = {c.header: cell for c, cell in zip(TABLE_COLUMNS, cells, strict=True)}
+    out[SEPARATION_MARGIN.header] = f"{_fmt(p5)}{margin_mark}"
+    return out
 
 
-def format_table(summary: dict[str, Any], policies: Sequence[str]) -> str:
-    """Fixed-width text table, one row per policy (all scenarios of the run), best score first, two notes."""
-    rows = [[c.header for c in TABLE_COLUMNS]]
+def format_table(
+    summary: dict[str, Any], policies: Sequence[str], columns: Sequence[Column] = TABLE_COLUMNS
+) -> str:
+    """Fixed-width text table, one row per policy (all scenarios of the run), best score first, two notes.
+
+    `columns`: the full table by default, `HEADLINE_COLUMNS` for the narrow one. The notes are wrapped to
+    the table's width or `HEADLINE_WIDTH`, whichever is wider.
+    """
+    rows = [[c.header for c in columns]]
     per_policy = summary["per_policy"]
     entries = [(p, per_policy[p]) for p in by_score(policies, per_policy)]
-    rows.extend(_row(name, agg) for name, agg in entries)
+    rows.extend(_row(name, agg, columns) for name, agg in entries)
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     lines = []
     for i, row in enumerate(rows):
@@ -254,12 +304,18 @@ def format_table(summary: dict[str, Any], policies: Sequence[str]) -> str:
         )
         if i == 0:
             lines.append("  ".join("-" * w for w in widths))
-    lines.append(
-        f"'{CLOSE_MARK}' = an episode passed a pedestrian closer than {_CFG.clearance:g} m; '-' = undefined;"
-        " delay: episodes that never pass count at the scenario's duration; every column is defined in"
-        " report.md."
+    where = (
+        "every column is defined in report.md."
+        if columns is TABLE_COLUMNS
+        else "the full table (--full-table) and every column's definition are in report.md."
     )
-    lines.append(format_world_health(summary))
+    notes = [
+        f"'{CLOSE_MARK}' = an episode passed a pedestrian closer than {_CFG.clearance:g} m; '-' = undefined;"
+        f" delay: episodes that never pass count at the scenario's duration; {where}",
+        format_world_health(summary),
+    ]
+    width = max(len(lines[0]), HEADLINE_WIDTH)
+    lines.extend(part for note in notes for part in textwrap.wrap(note, width, break_on_hyphens=False))
     return "\n".join(lines)
 
 

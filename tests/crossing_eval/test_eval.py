@@ -53,7 +53,8 @@ def test_cli_writes_table_json_csv_png_and_logs(
 ) -> None:
     proc, out = one_worker
     assert proc.returncode == 0, proc.stderr
-    assert "collision rate [95% CI]" in proc.stdout
+    assert "score [95% CI]" in proc.stdout and "ped. at fault" in proc.stdout  # the headline table
+    assert "collision rate [95% CI]" in (out / "table_full.txt").read_text()
     for name in ("yielding", "constant_speed"):
         assert name in proc.stdout
     assert "overall" not in proc.stdout  # no row pools different policies

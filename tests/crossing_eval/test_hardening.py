@@ -34,8 +34,9 @@ def first_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_run_writes_reports_and_one_missing_value_convention(first_run: Path, capsys) -> None:
     for name in ("report.md", "table.txt", "per_scenario.csv", "summary.csv", "episodes.csv", "results.json"):
         assert (first_run / name).is_file(), name
-    table = (first_run / "table.txt").read_text()
+    table = (first_run / "table_full.txt").read_text()
     assert "delay s (censored)" in table and "constant_speed" in table
+    assert "delay s" in (first_run / "table.txt").read_text()  # the headline table
     report = (first_run / "report.md").read_text()
     assert "## occluded_parked_car" in report and "| constant_speed |" in report
     rows = list(csv.DictReader((first_run / "per_scenario.csv").open()))

@@ -62,7 +62,7 @@ def test_a_plain_function_in_the_current_folder(tmp_path: Path, monkeypatch, cap
     code = main([*ARGS[:2], "--episodes", "1", "--no-progress", "--policies", f"{name}:cruise,yielding"])
     assert code == 0
     assert f"{name}:cruise" in capsys.readouterr().out
-    assert (tmp_path / "crossing-eval-results").is_dir()
+    assert (tmp_path / "crossing-eval-results" / "latest" / "results.json").is_file()
 
 
 def test_register_policy_and_entry_points(monkeypatch):

@@ -409,7 +409,7 @@ def test_every_table_cell_recomputes_from_the_episode_records(run: Path, doc: di
         return [row(p, aggs[p]) for p in sorted(policies, key=lambda p: -aggs[p]["score_mean"])]
 
     expected = rows({p: recompute(by_policy[p], durations) for p in policies})
-    assert _table_rows((run / "table.txt").read_text()) == expected
+    assert _table_rows((run / "table_full.txt").read_text()) == expected
     tables = _markdown_tables((run / "report.md").read_text())
     assert tables["Per policy, all scenarios of the run"] == expected
     names = doc["settings"]["scenario_names"]
@@ -441,7 +441,7 @@ def test_the_world_health_line_recomputes(run: Path, doc: dict[str, Any]) -> Non
         f" episodes with one {agg['background_collision_rate']:.3f} [{lo:.3f}, {hi:.3f}];"
         f" max relative speed {fmt(agg['background_collision_max_speed'])} m/s"
     )
-    assert (run / "table.txt").read_text().splitlines()[-1] == line
+    assert (run / "table_full.txt").read_text().splitlines()[-1] == line
 
 
 def test_the_run_holds_the_cases_the_rules_are_about(doc: dict[str, Any]) -> None:

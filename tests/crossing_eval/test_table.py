@@ -15,7 +15,14 @@ import pytest
 from crossing_env.safety import EpisodeResult
 from crossing_eval.outputs import _draw_min_ttc, _draw_safety_vs_efficiency, _write_summary_csv, dodge_offsets
 from crossing_eval.report import per_scenario_rows, report_markdown
-from crossing_eval.summary import CLOSE_MARK, TABLE_COLUMNS, format_table, summarise
+from crossing_eval.summary import (
+    CLOSE_MARK,
+    HEADLINE_COLUMNS,
+    HEADLINE_WIDTH,
+    TABLE_COLUMNS,
+    format_table,
+    summarise,
+)
 from crossing_eval.tasks import EpisodeRecord, EpisodeTask
 from tests.crossing_env.safety.snapshots import Ped, make_gt, metrics
 
@@ -226,3 +233,26 @@ def test_after_torch_the_plots_are_drawn_here_and_a_failing_one_raises_its_own_e
     with pytest.raises(ValueError, match="cannot draw"):
         outputs._plot(records, summary, list(RECORDS), tmp_path)
     assert (tmp_path / "safety_vs_efficiency.png").is_file() and not (tmp_path / "min_ttc.png").exists()
+
+
+def test_the_headline_table_fits_a_terminal_of_120_and_leads_with_the_score():
+    records = _records(
+        {
+            "predictive_yielding": [{"min_separation": 0.4}, {"min_separation": 2.0}],
+            "a_plugin_name_of_26_chars_": [{"min_separation": 3.0}, {"min_separation": 3.5}],
+        }
+    )
+    summary = _summarise(records)
+    policies = ["predictive_yielding", "a_plugin_name_of_26_chars_"]
+    headline = format_table(summary, policies, HEADLINE_COLUMNS)
+    assert max(len(line) for line in headline.splitlines()) <= HEADLINE_WIDTH < 120
+    header = headline.splitlines()[0].split("  ")
+    assert [h.strip() for h in header if h.strip()][:3] == ["policy", "n", "score [95% CI]"]
+    for needle in ("ped. at fault", "yield compl.", "min sep p5 m", "pass rate", "delay s", "--full-table"):
+        assert needle in headline, needle
+    for jargon in ("PET", "DRAC", "minTTC", "unresolved"):  # in the full table, not the headline
+        assert jargon not in headline and jargon in format_table(summary, policies), jargon
+    row = next(line for line in headline.splitlines() if line.startswith("predictive_yielding "))
+    assert f"0.48{CLOSE_MARK}" in row.split()  # the 5th percentile of (0.4, 2.0), marked as a close pass
+    report = report_markdown(summary, policies, {SCENARIO: SCENARIO}, {"episodes": 2})
+    assert "**min sep p5 m**" in report.split("## Definitions", 1)[1]
