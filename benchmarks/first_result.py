@@ -36,7 +36,7 @@ SMOKE = ["--scenarios", "zebra_case1", "--episodes", "1"]
 WARM_TARGET_S = 4.0
 COLD_TARGET_S = 20.0
 BASELINE_EPISODES_PER_S = 5.5
-"""The default table's speed when issue 26 was filed (315 episodes in 57-73 s, 2 workers)."""
+"""The default table's speed when the first-result targets were set (315 episodes in 57-73 s, 2 workers)."""
 RATE = re.compile(r"(\d+) episodes in ([\d.]+) s \(([\d.]+) episodes/s\)")
 
 
@@ -124,7 +124,7 @@ def main() -> None:
             rate, wall = rates[name]
             line += (
                 f"; default table {rate:.2f} episodes/s ({rate / BASELINE_EPISODES_PER_S:.2f}x the"
-                f" {BASELINE_EPISODES_PER_S} issue 26 measured on its machine), process {wall:.0f} s"
+                f" {BASELINE_EPISODES_PER_S} measured when the targets were set), process {wall:.0f} s"
             )
         print(line)
     if "peer" in trees:
@@ -134,8 +134,8 @@ def main() -> None:
         if len(rates) == 2:
             speed_up = rates["this tree"][0] / rates["peer"][0]
             ratios.append(
-                f"default table {speed_up:.2f}x the peer's episodes/s (issue 26's target, with the code"
-                " as it was when the issue was filed as the peer: >= 2x)"
+                f"default table {speed_up:.2f}x the peer's episodes/s (the target, with the code as it was"
+                " when the targets were set as the peer: >= 2x)"
             )
         print(f"  this tree against the peer in the same run: {'; '.join(ratios)}")
         if args.peer_warm_elsewhere is not None:

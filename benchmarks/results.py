@@ -501,13 +501,24 @@ def _render_first_result(data: dict[str, Any]) -> str:
     return _script_block(data, "first_result", timing)
 
 
+FIRST_RESULT_LINE = re.compile(
+    r"this tree\s+warm smoke (?P<warm>[\d.]+) .*?cold smoke (?P<cold>[\d.]+) s.*?"
+    r"default table (?P<rate>[\d.]+) episodes/s.*?process (?P<process>\d+) s"
+)
+"""This tree's figures in `benchmarks/first_result.py`'s summary (the README shows no other)."""
+
+
 def _render_first_result_summary(data: dict[str, Any]) -> str:
-    summary = data["output"].split("\nsummary", 1)[-1].splitlines()[1:]
-    line = "\n".join(x.strip() for x in summary if x.strip())
+    found = FIRST_RESULT_LINE.search(data["output"])
+    if found is None:
+        raise ValueError("first_result.json: its output has no summary line for this tree")
+    f = found.groupdict()
     return (
-        f"Measured by `{data['command']}` on commit `{data['commit'][:12]}` (2 cores; rendered from"
-        f" `benchmarks/results/first_result.json`, details in [docs/benchmarks.md](docs/benchmarks.md)):\n\n"
-        f"```\n{line}\n```"
+        f"On a 2-core machine (commit `{data['commit'][:12]}`; measured by `python -m benchmarks.results"
+        " first_result`, details in [docs/benchmarks.md](docs/benchmarks.md)):\n\n"
+        f"```\nquick first result (the command above)   {f['warm']} s; {f['cold']} s the first time after"
+        " installing (numba compiles its kernels once)\n"
+        f"main job (crossing-eval, no arguments)   {f['process']} s ({f['rate']} episodes/s)\n```"
     )
 
 

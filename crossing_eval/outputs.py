@@ -231,6 +231,10 @@ def _plot(
             raise RuntimeError(f"drawing {file_name} failed (exit status {child.exitcode} of its process)")
 
 
+def _share(value: float | None) -> str:
+    return "-" if value is None or not math.isfinite(value) else f"{value:.2f}"
+
+
 def dodge_offsets(
     points: Sequence[tuple[float, float]], tolerance: float = 0.02, step: float = 9.0
 ) -> list[float]:
@@ -258,32 +262,38 @@ def dodge_offsets(
 
 
 def _draw_safety_vs_efficiency(ax: Axes, summary: dict[str, Any], names: Sequence[str]) -> None:
-    """One marker per policy with its interval; the names are in the legend, so no label overlaps."""
+    """One marker per policy: its mean episode score (with its interval) against its delay.
+
+    Safety is the score, not the collision rate alone: its gates zero an at-fault collision or a broken
+    yield duty and take a near miss off, its TTC term counts the margin, so a car that never hits anyone
+    but ignores its yield duties or passes pedestrians at half a metre does not look safe. The names are
+    in the legend, so no label overlaps.
+    """
     from matplotlib.transforms import offset_copy
 
     aggs = [summary["per_policy"][name] for name in names]
-    points = [(agg["censored_mean_delay"], agg["collision_rate"]) for agg in aggs]
+    points = [(agg["censored_mean_delay"], agg["score_mean"]) for agg in aggs]
     offsets = dodge_offsets(points)
     colours = plt_colours(len(names))
-    for i, (name, agg, (x, rate)) in enumerate(zip(names, aggs, points, strict=True)):
-        lo, hi = agg["collision_ci95"]
+    for i, (name, agg, (x, score)) in enumerate(zip(names, aggs, points, strict=True)):
+        lo, hi = agg["score_ci95"]
         ax.update_datalim([(x, lo), (x, hi)])  # the shifted artists do not enter the autoscaling
         shift = offset_copy(ax.transData, fig=ax.figure, x=offsets[i], y=0.0, units="points")
         ax.errorbar(
             x,
-            rate,
-            yerr=[[rate - lo], [hi - rate]],
+            score,
+            yerr=[[score - lo], [hi - score]],
             fmt=MARKERS[i % len(MARKERS)],
             markersize=7,
             capsize=4,
             color=colours[i],
             markeredgecolor="black",
             transform=shift,
-            label=f"{name}: collisions {rate:.2f}, delay {x:.1f} s",
+            label=f"{name}: score {score:.2f}, compliance {_share(agg['yield_compliance'])}, delay {x:.1f} s",
         )
     ax.set_xlabel("delay at the crossing, non-passing episodes at the duration (s)  → less efficient")
-    ax.set_ylabel("collision rate (95% Wilson CI)  → less safe")
-    ax.set_title("Safety vs efficiency per policy")
+    ax.set_ylabel("episode score (95% CI): 0 = collision or broken yield  → safer, better")
+    ax.set_title("Safety (the episode score: collisions, yield duties, margins) vs efficiency per policy")
     ax.grid(alpha=0.3)
     ax.margins(x=0.15, y=0.1)
     ax.autoscale_view()

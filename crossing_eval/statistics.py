@@ -77,8 +77,11 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
     `serious_ttc`); min_separation_min/p5/p50 (episode minima, the smallest over episodes first) and
     close_pass_rate (episodes with a minimum separation < `clearance`); pet_pedestrian_first_p5/p50,
     pet_ego_first_p5/p50 and
-    critical_pet_rate (episodes with a PET < `critical_pet`); simultaneous_occupancies; drac_crossing_mean /
-    _max and drac_following_max; hard_brakes_per_episode (events), comfort_violations_per_episode (steps),
+    critical_pet_rate (episodes with a PET < `critical_pet`); simultaneous_occupancies; drac_conflict_rate
+    (episodes whose maximum crossing DRAC exceeds `drac_threshold`), drac_crossing_p95 (95th percentile of
+    the episode maxima, each capped at `drac_cap`), drac_crossing_mean / _max (uncapped: near contact they
+    run to hundreds of m/s², so the table shows the two before) and drac_following_max;
+    hard_brakes_per_episode (events), comfort_violations_per_episode (steps),
     max_deceleration_mean; speeding_rate (episodes with any time over the speed limit),
     max_speed_over_limit_max/_mean (the episodes' largest excess, m/s) and time_over_speed_limit_mean
     (s per episode); yield_obligations, yield_compliance (= compliant / obligations, obligations still
@@ -148,6 +151,8 @@ def aggregate(results: Sequence[EpisodeResult], config: MetricsConfig | None = N
         "pet_ego_first_p50": pe50,
         "critical_pet_rate": float(np.mean(np.minimum(pet_p, pet_e) < cfg.critical_pet)),
         "simultaneous_occupancies": sum(r.simultaneous_occupancies for r in results),
+        "drac_conflict_rate": float(np.mean(drac > cfg.drac_threshold)),
+        "drac_crossing_p95": finite_percentiles(np.minimum(drac, cfg.drac_cap), (95,))[0],
         "drac_crossing_mean": float(drac[np.isfinite(drac)].mean()) if np.isfinite(drac).any() else math.nan,
         "drac_crossing_max": float(drac.max()),
         "drac_following_max": float(col("max_drac_following").max()),

@@ -90,10 +90,20 @@ TABLE_COLUMNS: tuple[Column, ...] = (
         " lane on the crossing) to the ego entering it; 5th percentile of the episode minima.",
     ),
     Column(
-        "DRAC mean",
-        "drac_crossing_mean",
-        "Deceleration rate to avoid a crash (m/s²) against pedestrians holding the conflict area first:"
-        " mean over episodes of each episode's maximum.",
+        f"DRAC>{_CFG.drac_threshold:g}",
+        "drac_conflict_rate",
+        "Deceleration rate to avoid a crash (DRAC, m/s²) against pedestrians holding the conflict area"
+        " first: the constant braking that would bring the ego to the crossing just as they leave it. The"
+        f" share of episodes in which it ever exceeded {_CFG.drac_threshold:g} m/s² (the usual conflict"
+        " threshold, Archer 2005): the car needed harder than comfortable braking to avoid a pedestrian.",
+    ),
+    Column(
+        "DRAC p95",
+        "drac_crossing_p95",
+        "95th percentile over episodes of each episode's maximum DRAC (m/s²), each capped at"
+        f" {_CFG.drac_cap:g} m/s² (1 g, the most any car brakes): {_CFG.drac_cap:g} means one episode in"
+        " twenty needed braking no car has. Uncapped, the figure runs to hundreds of m/s² near contact"
+        " (results.json keeps drac_crossing_mean / _max so).",
     ),
     Column(
         "hard brakes/ep",
@@ -267,7 +277,8 @@ def _cells(name: str, agg: dict[str, Any]) -> dict[str, str]:
         sep,
         ttc,
         _fmt(agg["pet_pedestrian_first_p5"]),
-        _fmt(agg["drac_crossing_mean"]),
+        _fmt(agg["drac_conflict_rate"]),
+        _fmt(agg["drac_crossing_p95"]),
         _fmt(agg["hard_brakes_per_episode"]),
         f"{_fmt(comp, 3)} ({agg['yield_obligations']})",
         str(agg["yield_unresolved"]),

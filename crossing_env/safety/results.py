@@ -39,6 +39,12 @@ class MetricsConfig:
     """TTC (s) below which a step counts as an encounter (SUMO SSM logging threshold)."""
     critical_pet: float = 1.5
     """PET (s) below which an encounter is critical (Peesapati 2018)."""
+    drac_threshold: float = 3.35
+    """DRAC (m/s²) above which an encounter is a conflict: the usual threshold (Archer 2005, after Cooper
+    and Ferguson 1976); SUMO logs DRAC > 3.0, Huber 2020 uses 3.4."""
+    drac_cap: float = 9.81
+    """DRAC figures are capped at 1 g (m/s²): no car brakes harder, and near contact the formula grows
+    without bound (hundreds of m/s²), which says nothing more than 'unavoidable'."""
     clearance: float = 1.0
     """Footprint distance (m) below which the ego is too close to a pedestrian (1–2 m is typical)."""
     ttc_min_ego_speed: float = 5e-3

@@ -32,6 +32,10 @@ SERIOUS_TTC = 1.5
 """s: the serious-conflict TTC the page names."""
 CRITICAL_PET = 1.5
 """s: the critical PET the page names."""
+DRAC_THRESHOLD = 3.35
+"""m/s²: the DRAC conflict threshold the page names."""
+DRAC_CAP = 9.81
+"""m/s²: the cap (1 g) on each episode's maximum DRAC the page names."""
 DURATIONS = {"cut_zebra": 7.5, "short_occluded": 12.0}
 """The shortened scenarios' durations (s): their time limits, so the censoring value differs per scenario."""
 
@@ -179,6 +183,12 @@ def pct(eps: Sequence[Episode], key: str, q: float) -> float | None:
     return float(np.percentile(finite, q)) if finite else None
 
 
+def capped_p95(eps: Sequence[Episode], key: str, cap: float) -> float | None:
+    """95th percentile of the non-null values, each capped at `cap` (an infinite one counts as `cap`)."""
+    capped = [min(float(e["metrics"][key]), cap) for e in eps if e["metrics"][key] is not None]
+    return float(np.percentile(capped, 95)) if capped else None
+
+
 def mean(xs: Sequence[float]) -> float | None:
     return float(np.mean(xs)) if xs else None
 
@@ -290,6 +300,8 @@ def recompute(eps: Sequence[Episode], durations: dict[str, float]) -> dict[str, 
         "pet_ego_first_p50": pct(eps, "min_pet_ego_first", 50),
         "critical_pet_rate": share(eps, min_pet),
         "simultaneous_occupancies": total(eps, "simultaneous_occupancies"),
+        "drac_conflict_rate": share(eps, lambda m: m["max_drac_crossing"] > DRAC_THRESHOLD),
+        "drac_crossing_p95": capped_p95(eps, "max_drac_crossing", DRAC_CAP),
         "drac_crossing_mean": avg("max_drac_crossing"),
         "drac_crossing_max": largest(eps, "max_drac_crossing"),
         "drac_following_max": largest(eps, "max_drac_following"),
@@ -340,7 +352,8 @@ def row(policy: str, agg: dict[str, Any]) -> list[str]:
         f"{fmt(agg['min_separation_min'])}{mark}/{fmt(agg['min_separation_p50'])}",
         f"{fmt(agg['min_ttc_p5'])}/{fmt(agg['min_ttc_p50'])}{mark}",
         fmt(agg["pet_pedestrian_first_p5"]),
-        fmt(agg["drac_crossing_mean"]),
+        fmt(agg["drac_conflict_rate"]),
+        fmt(agg["drac_crossing_p95"]),
         fmt(agg["hard_brakes_per_episode"]),
         f"{fmt(agg['yield_compliance'], 3)} ({agg['yield_obligations']})",
         str(agg["yield_unresolved"]),

@@ -194,6 +194,37 @@ def test_plots_have_no_point_labels_and_identical_curves_are_named():
     plt.close(fig)
 
 
+def test_the_safety_axis_is_the_score_so_breaking_yield_duties_without_a_collision_does_not_look_safe():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    duties = {"yield_obligations": 1}
+    runs = {
+        "careful": [{**duties, "yield_compliant": 1}, {**duties, "yield_compliant": 1}],
+        "ignores_duties": [{**duties, "yield_violations": 1}, {**duties, "yield_violations": 1}],
+    }
+    summary = _summarise(_records(runs))
+    assert all(summary["per_policy"][p]["collision_rate"] == 0.0 for p in runs)  # alike on collisions
+    fig, ax = plt.subplots()
+    _draw_safety_vs_efficiency(ax, summary, list(runs))
+    careful, ignores = (float(c.lines[0].get_ydata()[0]) for c in ax.containers)
+    assert ignores == 0.0 < careful
+    assert "score" in ax.get_ylabel()
+    plt.close(fig)
+
+
+def test_drac_figures_stay_physical_near_contact():
+    from crossing_eval.statistics import aggregate
+
+    near_contact = [dataclasses.replace(_base(), max_drac_crossing=v) for v in (0.0, 2.0, 4.0, 422.9, 1257.2)]
+    agg = aggregate(near_contact)
+    assert agg["drac_conflict_rate"] == 0.6  # 4.0, 422.9 and 1257.2 exceed 3.35 m/s²
+    assert agg["drac_crossing_p95"] == pytest.approx(9.81)  # capped at 1 g, not hundreds of m/s²
+    assert agg["drac_crossing_mean"] > 300  # the uncapped mean the table no longer shows
+
+
 def test_plots_drawn_in_a_child_process_are_written_and_a_failing_one_stops_the_outputs(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ):
