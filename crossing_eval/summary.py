@@ -159,7 +159,8 @@ SEPARATION_MARGIN = Column(
     "min_separation_p5",
     "Separation margin: the 5th percentile over episodes of each episode's minimum ego-pedestrian footprint"
     " distance (m; negative = overlap): one episode in twenty passed closer. '-' = no pedestrian in any"
-    f" episode; a trailing '{CLOSE_MARK}' marks a pass closer than the {_CFG.clearance:g} m clearance.",
+    f" episode; a trailing '{CLOSE_MARK}' says that some episode passed closer than the {_CFG.clearance:g} m"
+    " clearance (as in the full table's min sep).",
 )
 _BY_HEADER = {c.header: c for c in TABLE_COLUMNS}
 HEADLINE_COLUMNS: tuple[Column, ...] = (
@@ -264,8 +265,6 @@ def _cells(name: str, agg: dict[str, Any]) -> dict[str, str]:
     sep = f"{_fmt(agg['min_separation_min'])}{mark}/{_fmt(agg['min_separation_p50'])}"
     # A close pass marks the TTC too: "-" (never on a collision course) or a long TTC is no all-clear.
     ttc = f"{_fmt(agg['min_ttc_p5'])}/{_fmt(agg['min_ttc_p50'])}{mark}"
-    p5 = agg["min_separation_p5"]
-    margin_mark = CLOSE_MARK if p5 is not None and not math.isnan(p5) and p5 < _CFG.clearance else ""
     s_lo, s_hi = agg["score_ci95"]
     cells = [
         name,
@@ -288,7 +287,7 @@ def _cells(name: str, agg: dict[str, Any]) -> dict[str, str]:
         _fmt(agg["censored_mean_delay"]),
     ]
     out = {c.header: cell for c, cell in zip(TABLE_COLUMNS, cells, strict=True)}
-    out[SEPARATION_MARGIN.header] = f"{_fmt(p5)}{margin_mark}"
+    out[SEPARATION_MARGIN.header] = f"{_fmt(agg['min_separation_p5'])}{mark}"  # the same '!' as min sep
     return out
 
 

@@ -284,6 +284,8 @@ def test_the_headline_table_fits_a_terminal_of_120_and_leads_with_the_score():
     for jargon in ("PET", "DRAC", "minTTC", "unresolved"):  # in the full table, not the headline
         assert jargon not in headline and jargon in format_table(summary, policies), jargon
     row = next(line for line in headline.splitlines() if line.startswith("predictive_yielding "))
-    assert f"0.48{CLOSE_MARK}" in row.split()  # the 5th percentile of (0.4, 2.0), marked as a close pass
+    assert f"0.48{CLOSE_MARK}" in row.split()  # the 5th percentile of (0.4, 2.0), marked: a close pass
+    other = next(line for line in headline.splitlines() if line.startswith("a_plugin"))
+    assert "3.02" in other.split()  # no episode closer than the clearance: no mark
     report = report_markdown(summary, policies, {SCENARIO: SCENARIO}, {"episodes": 2})
     assert "**min sep p5 m**" in report.split("## Definitions", 1)[1]
