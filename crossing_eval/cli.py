@@ -533,15 +533,25 @@ def _run(
     print(format_table(summary, args.policies, TABLE_COLUMNS if args.full_table else HEADLINE_COLUMNS))
     ncap = ncap_rows(records)
     if ncap:
-        print("\n" + format_ncap_table(ncap))
+        print("\n" + _fit(format_ncap_table(ncap)))
     worst = sum(f.startswith("worst/") for f in files)
     done = (
         f"{ran} episodes in {wall:.1f} s ({ran / max(wall, 1e-9):.2f} episodes/s); wrote"
         f" {', '.join(f for f in files if not f.startswith('worst/') and f != 'table_full.txt')},"
         f" table_full.txt (every column) and {worst} worst-episode log(s) to {where}"
     )
-    print("\n" + textwrap.fill(done, HEADLINE_WIDTH, break_long_words=False, break_on_hyphens=False))
+    print("\n" + _fit(done))
     return 0
+
+
+def _fit(text: str) -> str:
+    """`text` with each line longer than `HEADLINE_WIDTH` wrapped (notes; table rows are narrower)."""
+    return "\n".join(
+        textwrap.fill(line, HEADLINE_WIDTH, break_long_words=False, break_on_hyphens=False)
+        if len(line) > HEADLINE_WIDTH
+        else line
+        for line in text.splitlines()
+    )
 
 
 def _commit(args: argparse.Namespace, staged: StagedFolder) -> str:

@@ -86,6 +86,8 @@ def test_a_newcomer_runs_the_readme_as_written(tmp_path: Path):
             assert proc.returncode == 0, f"{argv[-1]!r} failed ({proc.returncode}):\n{said[-3000:]}"
             assert "Traceback" not in said, f"{argv[-1]!r} printed a traceback:\n{said[-3000:]}"
             outputs.append(said)
+            if argv[-1] == "crossing-eval":  # the main job fits a terminal 120 columns wide
+                assert max(len(line) for line in proc.stdout.splitlines()) < 120
     assert any("mypol:cruise" in out and "yielding" in out for out in outputs)  # their function, evaluated
     parent = tmp_path / "crossing-eval-results"
     runs = [p for p in parent.iterdir() if p.is_dir() and not p.is_symlink()]
