@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from crossing_env.safety.results import MetricsConfig
+from crossing_env.safety.score import ScoreConfig
 from scenarios.config import EgoConfig, RewardConfig
 
 
@@ -194,6 +195,39 @@ class PredictiveYieldingConfig(YieldingConfig):
     plan_min_hold: float = 1.0
     """Hysteresis: keep a plan at least this long (s) before switching to a better one, unless the plan
     held forecasts a collision (then any better plan takes over at once)."""
+
+
+@dataclass(frozen=True)
+class PlannerConfig(PredictiveYieldingConfig):
+    """Parameters of `agents.planner.SamplingPlanner` (proposals, forecast hypotheses, scorer).
+
+    The legal-yield rules and their parameters are `PredictiveYielding`'s (inherited): they set the stop
+    every proposal must keep. The scorer's weights and anchors are the episode score's (`score`).
+    """
+
+    target_fractions: tuple[float, ...] = (0.0, 0.2, 0.4, 0.6, 0.8, 1.0)
+    """Target speeds of the proposals as shares of the speed limit (PDM-Closed: 20 % to 100 %; 0 adds the
+    comfortable stop)."""
+    speed_gain: float = 1.0
+    """Proportional gain (1/s) with which a proposal tracks its target speed, between
+    −`comfortable_deceleration` and `go_acceleration`."""
+    emergency_proposal: bool = True
+    """Also propose a stop at the ego's full `max_deceleration` (chosen only when no comfortable proposal
+    meets the chance constraint: the PDM-Closed emergency brake)."""
+    step_off_prior: float = 0.1
+    """Probability that a pedestrian at the kerb, not walking away, steps off now, when no predictor says
+    otherwise (the conservative prior: anyone at the kerb may step off)."""
+    signal_step_off_prior: float = 0.02
+    """The same at a signalised crossing that shows the car green, where people at the kerb wait for their
+    own signal (a red-light walker still may)."""
+    collision_chance: float = 0.05
+    """Chance constraint: a proposal whose forecast probability of a collision exceeds this is not taken
+    while another meets it (otherwise the least likely to collide is)."""
+    switch_margin: float = 0.01
+    """Hysteresis: the proposal followed last step is kept unless another scores this much higher (score
+    units, [0, 1]) or it no longer meets the chance constraint."""
+    score: ScoreConfig = field(default_factory=ScoreConfig)
+    """Weights and anchors of the terms scored (progress, TTC, comfort): the episode score's own."""
 
 
 @dataclass(frozen=True)

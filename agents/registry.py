@@ -39,10 +39,12 @@ from agents.config import (
     ConstantSpeedConfig,
     DrivingConfig,
     HighwayRuleConfig,
+    PlannerConfig,
     PredictiveYieldingConfig,
     TTCBrakeConfig,
     YieldingConfig,
 )
+from agents.planner import SamplingPlanner
 from agents.policy import ConstantAction, Policy, RandomAction, as_policy
 from agents.predictive import PredictiveYielding
 from agents.yielding import AlwaysCautious, YieldingPolicy
@@ -93,6 +95,8 @@ BUILTIN_POLICIES: tuple[str, ...] = tuple(_REGISTRY)
 """The rule-based policies (always available)."""
 POLICIES: tuple[str, ...] = (*BUILTIN_POLICIES, DEFAULT_LEARNED)
 """The default table of `crossing-eval`: the rule-based policies and the default shipped learned policy."""
+_REGISTRY["sampling_planner"] = PolicyEntry(SamplingPlanner, PlannerConfig)
+"""The sampling planner (`agents.planner`): not in the default table yet."""
 _REGISTRY["constant"] = PolicyEntry(ConstantAction, None, uses_predictors=False)
 _REGISTRY.update(
     {
