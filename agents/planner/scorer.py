@@ -7,7 +7,7 @@ its lane corridor ahead once a stop needs `comfortable_deceleration` (up to its 
 halts at the legal stop (before a pedestrian, `pedestrian_gap` short of them, as the rules stop). Per
 hypothesis it records an at-fault collision (the ego's box and the pedestrian's disc overlap after the
 pedestrian was in the corridor ahead: a pedestrian does not walk into the side of a passing car, and the
-score does not blame the car for one who does), the least time to collision (gap / ego speed while the
+score does not blame the car for one who does), the least time to collision (gap / closing speed while the
 pedestrian is in the corridor ahead), the hardest braking and the distance covered. The expectation over
 hypotheses gives the terms of the episode score (`crossing_env.safety.score`):
 
@@ -26,6 +26,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
 from agents.config import PlannerConfig
 from agents.planner.forecasts import Hypotheses
@@ -77,59 +78,60 @@ def score_proposals(
     (B, K) the pedestrian slots in use.
     """
     b, p = speed.shape[0], proposals.target.shape[0]
-    _, _, k, h, steps1, _ = hyp.points.shape
+    h, steps1 = hyp.points.shape[3], hyp.points.shape[4]
     plan = plan_index(speed, proposals, hyp, cfg)  # (B, P)
-    pts = hyp.points[np.arange(b)[:, None], plan]  # (B, P, K, H, T + 1, 2)
-    dt = hyp.interval / SUBSTEPS
-    r = cfg.pedestrian_radius
-    half_len = cfg.ego_length / 2 + r
-    body = cfg.ego_width / 2 + r
-    band = body + cfg.lateral_margin
-    ok = present[:, None, :, None]
-    cap = np.maximum(cfg.speed_limit, speed)[:, None, None, None]
-    stop = np.asarray(halt, dtype=np.float64)[:, None, None, None]
+    # Only pedestrians who can matter: present, and not behind the car in every forecast (it only goes on).
+    half_len = cfg.ego_length / 2 + cfg.pedestrian_radius
+    relevant = present & (hyp.points[..., 0].max(axis=(1, 3, 4)) > -half_len)  # (B, K)
+    keep = relevant.any(axis=0)
+    keep[0] |= not keep.any()  # one (empty) slot keeps the shapes: the proposals alone
+    points = np.ascontiguousarray(hyp.points[:, :, keep], dtype=np.float64)
+    weights = hyp.weights[:, keep]
+    k = int(keep.sum())
     shape = (b, p, k, h)
-    v = np.broadcast_to(speed[:, None, None, None], shape).astype(np.float64)
-    s = np.zeros(shape)
-    collision = np.zeros(shape, dtype=bool)
-    met = np.zeros(shape, dtype=bool)
+    collision = np.zeros(shape, dtype=np.bool_)
     least_ttc = np.full(shape, np.inf)
     hardest = np.zeros(shape)
-    first = np.zeros((b, p))
-    along = Proposals(target=proposals.target[:, None, None], braking=proposals.braking[:, None, None])
-    for n in range(1, (steps1 - 1) * SUBSTEPS + 1):
-        j, f = divmod(n - 1, SUBSTEPS)
-        at = pts[..., j, :] + (f / SUBSTEPS) * (pts[..., j + 1, :] - pts[..., j, :])  # (B, P, K, H, 2)
-        rel_x = at[..., 0] - s
-        y = np.abs(at[..., 1])
-        ahead = ok & (y <= band) & (rel_x > half_len)
-        # At fault only: someone who was in the corridor ahead, not someone walking into the car's side.
-        collision |= met & (y <= body) & (np.abs(rel_x) <= half_len)
-        met |= ahead
-        clear = rel_x - half_len
-        gap = np.minimum(np.where(ahead, clear - cfg.pedestrian_gap, np.inf), stop - s)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            need = np.where(gap > 0.05, v * v / (2.0 * np.maximum(gap, 0.05)), np.where(v > 0.0, np.inf, 0.0))
-            ttc = np.where(ahead & (v > 0.1), clear / v, np.inf)
-        least_ttc = np.minimum(least_ttc, ttc)
-        track = command(v, along, cfg)
-        acc = np.where(
-            need >= cfg.comfortable_deceleration, -np.minimum(need, cfg.ego.max_deceleration), track
-        )
-        if n == 1:  # every hypothesis starts where the pedestrian is now: the same braking for all of them
-            first = acc.min(axis=(2, 3))
-        hardest = np.maximum(
-            hardest, np.where(v > CREEP, -acc, 0.0)
-        )  # the last creep into a stop is not braking
-        nxt = np.clip(v + acc * dt, 0.0, cap)
-        s = np.minimum(s + 0.5 * (v + nxt) * dt, np.maximum(stop, s))
-        v = np.where(s >= stop, 0.0, nxt)
-    w = hyp.weights[:, None]  # (B, 1, K, H)
+    covered = np.zeros(shape)
+    first = np.zeros(shape)
+    params = np.array(
+        [
+            hyp.interval / SUBSTEPS,
+            half_len,
+            cfg.ego_width / 2 + cfg.pedestrian_radius,
+            cfg.lateral_margin,
+            cfg.pedestrian_gap,
+            cfg.comfortable_deceleration,
+            cfg.ego.max_deceleration,
+            cfg.speed_gain,
+            cfg.go_acceleration,
+            cfg.speed_limit,
+            hyp.interval,
+        ]
+    )
+    _rollout(
+        points,
+        plan.astype(np.int64),
+        np.ascontiguousarray(relevant[:, keep]),
+        np.asarray(speed, dtype=np.float64),
+        np.asarray(halt, dtype=np.float64),
+        proposals.target.astype(np.float64),
+        proposals.braking.astype(np.float64),
+        params,
+        collision,
+        least_ttc,
+        hardest,
+        covered,
+        first,
+    )
+    first = first.min(axis=(2, 3))  # every hypothesis starts where the pedestrian is now
+    s = covered
+    w = weights[:, None]  # (B, 1, K, H)
     sc = cfg.score
     p_k = (w * collision).sum(axis=-1)  # (B, P, K)
     p_collision = 1.0 - np.prod(1.0 - p_k, axis=-1)
     horizon = (steps1 - 1) * hyp.interval
-    covered = (w * s).sum(axis=-1).min(axis=-1)  # (B, P)
+    covered = (w * s).sum(axis=-1).min(axis=-1)  # (B, P): the pedestrian who holds the car most
     progress = np.clip(covered / max(cfg.speed_limit * horizon, 1e-6), 0.0, 1.0)
     ttc_term = np.clip(least_ttc / sc.ttc_anchor, 0.0, 1.0)
     ttc = 1.0 - (w * (1.0 - ttc_term)).sum(axis=-1).max(axis=-1)
@@ -139,6 +141,97 @@ def score_proposals(
     total = sc.progress_weight + sc.ttc_weight + sc.comfort_weight
     mean = (sc.progress_weight * progress + sc.ttc_weight * ttc + sc.comfort_weight * comfort) / total
     return Scores(score=(1.0 - p_collision) * mean, collision=p_collision, first=first)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _rollout(
+    points: np.ndarray,
+    plan: np.ndarray,
+    present: np.ndarray,
+    speed: np.ndarray,
+    halt: np.ndarray,
+    target: np.ndarray,
+    braking: np.ndarray,
+    params: np.ndarray,
+    collision: np.ndarray,
+    least_ttc: np.ndarray,
+    hardest: np.ndarray,
+    covered: np.ndarray,
+    first: np.ndarray,
+) -> None:
+    """Drive proposal p against hypothesis h of pedestrian k in batch element b (see the module docstring).
+
+    `points` (B, C, K, H, T + 1, 2), `plan` (B, P) the forecast plan of each proposal, `present` (B, K);
+    writes (B, P, K, H): `collision` (at fault), `least_ttc`, `hardest` braking, `covered` distance and
+    `first` acceleration.
+    """
+    dt, half_len, body, margin, ped_gap, comfortable, max_dec, gain, go, limit, interval = params
+    band = body + margin
+    b_n, p_n = plan.shape
+    k_n, h_n, steps = points.shape[2], points.shape[3], points.shape[4] - 1
+    sub = SUBSTEPS
+    for b in range(b_n):
+        cap = max(limit, speed[b])
+        stop = halt[b]
+        for p in range(p_n):
+            c = plan[b, p]
+            full = braking[p] > comfortable
+            for k in range(k_n):
+                ok = present[b, k]
+                for h in range(h_n):
+                    v = speed[b]
+                    s = 0.0
+                    met = False
+                    hit = False
+                    ttc_min = np.inf
+                    worst = 0.0
+                    for n in range(steps * sub):
+                        j = n // sub
+                        f = (n % sub) / sub
+                        x0 = points[b, c, k, h, j, 0]
+                        y0 = points[b, c, k, h, j, 1]
+                        dx = points[b, c, k, h, j + 1, 0] - x0
+                        at_x = x0 + f * dx
+                        y = abs(y0 + f * (points[b, c, k, h, j + 1, 1] - y0))
+                        away = max(dx / interval, 0.0)
+                        rel_x = at_x - s
+                        ahead = ok and y <= band and rel_x > half_len
+                        if met and y <= body and abs(rel_x) <= half_len:
+                            hit = True  # at fault only: they were in the corridor ahead first
+                        met = met or ahead
+                        clear = rel_x - half_len
+                        to_stop = stop - s
+                        gap = to_stop
+                        lead = 0.0
+                        if ahead and clear - ped_gap < gap:
+                            gap = clear - ped_gap
+                            lead = min(away, v)  # behind someone walking away: slow to their pace
+                        if gap > 0.05:
+                            need = (v * v - lead * lead) / (2.0 * gap)
+                        elif v > lead:
+                            need = np.inf
+                        else:
+                            need = 0.0
+                        closing = v - (away if ahead else 0.0)
+                        if ahead and closing > 0.1:
+                            ttc_min = min(ttc_min, clear / closing)
+                        if need >= comfortable:
+                            acc = -min(need, max_dec)
+                        elif full and v > 0.0:
+                            acc = -braking[p]
+                        else:
+                            acc = min(max(gain * (target[p] - v), -braking[p]), go)
+                        if n == 0:
+                            first[b, p, k, h] = acc
+                        if v > CREEP:  # the last creep into a stop is not braking
+                            worst = max(worst, -acc)
+                        nxt = min(max(v + acc * dt, 0.0), cap)
+                        s = min(s + 0.5 * (v + nxt) * dt, max(stop, s))
+                        v = 0.0 if s >= stop else nxt
+                    collision[b, p, k, h] = hit
+                    least_ttc[b, p, k, h] = ttc_min
+                    hardest[b, p, k, h] = worst
+                    covered[b, p, k, h] = s
 
 
 def choose(scores: Scores, current: np.ndarray, cfg: PlannerConfig) -> np.ndarray:

@@ -173,3 +173,14 @@ def test_intent_that_rules_a_pedestrian_out_lets_the_planner_drive_faster() -> N
     ruled_out[CROSSING_INTENT_KEY] = np.zeros(16, dtype=np.float32)
     told = accel(SamplingPlanner(cfg)(ruled_out))[0]
     assert prior < -1.0 and told == pytest.approx(0.0, abs=1e-3)  # slows for the prior; holds the limit
+
+
+def test_behind_someone_walking_away_along_the_lane_the_planner_follows_rather_than_stops() -> None:
+    walker = {"dx": 8.0, "dy": 0.0, "vx": 1.4, "road": 1}
+    view, hyp = hypotheses(make_obs(3.0, 80.0, [walker], zebra=False))
+    props = make_proposals(CFG)
+    scores = score_proposals(view.speed, np.full(1, np.inf), view.present, props, hyp, CFG)
+    assert (scores.collision == 0.0).all()
+    best = choose(scores, np.full(1, -1), CFG)[0]
+    assert props.target[best] > 0.0  # it follows at their pace; the closing speed, not its own, sets TTC
+    assert scores.first[0, best] >= -CFG.comfortable_deceleration
