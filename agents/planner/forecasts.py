@@ -16,8 +16,9 @@ off the road) may **step off now**: a hypothesis that walks them straight across
   publishes as confidently not crossing). The intent to cross at all says who will cross, not when;
 - only ``crossing_intention`` (the near-term probability of being on the road ahead): that value.
 
-The step-off mass is net of what the paths already put on the road (a forecast that has them crossing
-within the horizon needs no extra hypothesis), so a forecast that is right about a crossing costs nothing.
+The step-off mass is net of what the paths already put on the road under the same plan (a forecast that
+has them crossing within the horizon needs no extra hypothesis), so a forecast that is right about a
+crossing costs nothing.
 """
 
 from __future__ import annotations
@@ -45,9 +46,13 @@ class Hypotheses(NamedTuple):
     """(B, C, K, H, T + 1, 2) positions in the ego frame at 0.4 s steps, index 0 the current one; C plans
     (1 without plan-conditioned forecasts)."""
     weights: np.ndarray
-    """(B, K, H) probability of each hypothesis (summing to 1 per slot; uniform in absent slots)."""
+    """(B, C, K, H) probability of each hypothesis under each plan (summing to 1 per slot; uniform in
+    absent slots)."""
     plan_accelerations: np.ndarray | None
     """(C,) the ego acceleration (m/s²) each plan's forecast assumes; None: one forecast for any plan."""
+    reactive: np.ndarray
+    """(H,) True for the step-off hypothesis: a pedestrian who reacts to the car, and so does not walk into
+    the side of one passing in front of them (a forecast path is taken as it is)."""
 
     @property
     def interval(self) -> float:
@@ -116,11 +121,14 @@ def build_hypotheses(
     points = np.concatenate([start_b, paths], axis=4)  # (B, C, K, S, T + 1, 2)
     total = weights.sum(axis=-1, keepdims=True)
     weights = np.where(total > 0.0, weights / np.where(total > 0.0, total, 1.0), 1.0 / s)
-    # Mass the paths already put on the road within the horizon (any plan's forecast counts).
+    # Mass each plan's paths already put on the road within the horizon: a plan under which someone stays
+    # on the kerb (waiting for the car, say) keeps the step-off hypothesis, so slowing down does not make
+    # them vanish from the forecast.
     y = points[..., 1]
-    on_road = ((y > cfg.road_right) & (y < cfg.road_left)).any(axis=-1).any(axis=1)  # (B, K, S)
-    crossing_mass = (weights * on_road).sum(axis=-1)
-    q = np.clip(step_off_probability(view, obs, cfg, kerb_gap, towards_road) - crossing_mass, 0.0, 1.0)
+    on_road = ((y > cfg.road_right) & (y < cfg.road_left)).any(axis=-1)  # (B, C, K, S)
+    crossing_mass = (weights[:, None] * on_road).sum(axis=-1)  # (B, C, K)
+    q = step_off_probability(view, obs, cfg, kerb_gap, towards_road)[:, None]
+    q = np.clip(q - crossing_mass, 0.0, 1.0)  # (B, C, K)
     mid = 0.5 * (cfg.road_right + cfg.road_left)
     direction = np.where(view.py < mid, 1.0, -1.0)  # towards the far kerb
     times = HISTORY_INTERVAL * np.arange(t + 1)
@@ -128,5 +136,6 @@ def build_hypotheses(
     walk_x = np.broadcast_to(view.px[..., None], walk_y.shape)
     walk = np.stack([walk_x, walk_y], axis=-1)[:, None, :, None]  # (B, 1, K, 1, T + 1, 2)
     points = np.concatenate([points, np.broadcast_to(walk, (b, c, k, 1, t + 1, 2))], axis=3)
-    weights = np.concatenate([weights * (1.0 - q)[..., None], q[..., None]], axis=-1)
-    return Hypotheses(points=points, weights=weights, plan_accelerations=plan_acc)
+    weights = np.concatenate([weights[:, None] * (1.0 - q)[..., None], q[..., None]], axis=-1)
+    reactive = np.append(np.zeros(s, dtype=bool), True)
+    return Hypotheses(points=points, weights=weights, plan_accelerations=plan_acc, reactive=reactive)

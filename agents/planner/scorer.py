@@ -5,11 +5,12 @@ Each proposal is driven for the forecast's horizon at 0.1 s against each pedestr
 proposal's target but, as every proposal of PDM-Closed follows its leader, brakes for the pedestrian in
 its lane corridor ahead once a stop needs `comfortable_deceleration` (up to its `max_deceleration`) and
 halts at the legal stop (before a pedestrian, `pedestrian_gap` short of them, as the rules stop). Per
-hypothesis it records an at-fault collision (the ego's box and the pedestrian's disc overlap after the
-pedestrian was in the corridor ahead: a pedestrian does not walk into the side of a passing car, and the
-score does not blame the car for one who does), the least time to collision (gap / closing speed while the
-pedestrian is in the corridor ahead), the hardest braking and the distance covered. The expectation over
-hypotheses gives the terms of the episode score (`crossing_env.safety.score`):
+hypothesis it records a collision (the ego's box and the pedestrian's disc overlap; under the step-off
+hypothesis only once they were in the corridor ahead: someone who reacts to the car does not walk into the
+side of one passing in front of them, whereas a forecast path is taken as it is), the least time to
+collision (gap / closing speed while the pedestrian is in the corridor ahead), the hardest braking and the
+distance covered. The expectation over hypotheses gives the terms of the episode score
+(`crossing_env.safety.score`):
 
     expected score = (1 − P(collision)) · (w_p·progress + w_t·TTC + w_c·comfort) / (w_p + w_t + w_c)
 
@@ -86,7 +87,7 @@ def score_proposals(
     keep = relevant.any(axis=0)
     keep[0] |= not keep.any()  # one (empty) slot keeps the shapes: the proposals alone
     points = np.ascontiguousarray(hyp.points[:, :, keep], dtype=np.float64)
-    weights = hyp.weights[:, keep]
+    weights = hyp.weights[np.arange(b)[:, None], plan][:, :, keep]  # (B, P, K, H): each under its plan
     k = int(keep.sum())
     shape = (b, p, k, h)
     collision = np.zeros(shape, dtype=np.bool_)
@@ -107,12 +108,14 @@ def score_proposals(
             cfg.go_acceleration,
             cfg.speed_limit,
             hyp.interval,
+            cfg.clearance,
         ]
     )
     _rollout(
         points,
         plan.astype(np.int64),
         np.ascontiguousarray(relevant[:, keep]),
+        hyp.reactive.astype(np.bool_),
         np.asarray(speed, dtype=np.float64),
         np.asarray(halt, dtype=np.float64),
         proposals.target.astype(np.float64),
@@ -126,7 +129,7 @@ def score_proposals(
     )
     first = first.min(axis=(2, 3))  # every hypothesis starts where the pedestrian is now
     s = covered
-    w = weights[:, None]  # (B, 1, K, H)
+    w = weights
     sc = cfg.score
     p_k = (w * collision).sum(axis=-1)  # (B, P, K)
     p_collision = 1.0 - np.prod(1.0 - p_k, axis=-1)
@@ -148,6 +151,7 @@ def _rollout(
     points: np.ndarray,
     plan: np.ndarray,
     present: np.ndarray,
+    reactive: np.ndarray,
     speed: np.ndarray,
     halt: np.ndarray,
     target: np.ndarray,
@@ -161,11 +165,12 @@ def _rollout(
 ) -> None:
     """Drive proposal p against hypothesis h of pedestrian k in batch element b (see the module docstring).
 
-    `points` (B, C, K, H, T + 1, 2), `plan` (B, P) the forecast plan of each proposal, `present` (B, K);
-    writes (B, P, K, H): `collision` (at fault), `least_ttc`, `hardest` braking, `covered` distance and
+    `points` (B, C, K, H, T + 1, 2), `plan` (B, P) the forecast plan of each proposal, `present` (B, K),
+    `reactive` (H) the hypotheses in which the pedestrian does not walk into the car's side;
+    writes (B, P, K, H): `collision`, `least_ttc`, `hardest` braking, `covered` distance and
     `first` acceleration.
     """
-    dt, half_len, body, margin, ped_gap, comfortable, max_dec, gain, go, limit, interval = params
+    dt, half_len, body, margin, ped_gap, comfortable, max_dec, gain, go, limit, interval, room = params
     band = body + margin
     b_n, p_n = plan.shape
     k_n, h_n, steps = points.shape[2], points.shape[3], points.shape[4] - 1
@@ -196,8 +201,13 @@ def _rollout(
                         away = max(dx / interval, 0.0)
                         rel_x = at_x - s
                         ahead = ok and y <= band and rel_x > half_len
-                        if met and y <= body and abs(rel_x) <= half_len:
-                            hit = True  # at fault only: they were in the corridor ahead first
+                        if (
+                            ok
+                            and (met or not reactive[h])
+                            and y <= body
+                            and abs(rel_x) <= half_len + (0.0 if reactive[h] else room)
+                        ):
+                            hit = True
                         met = met or ahead
                         clear = rel_x - half_len
                         to_stop = stop - s

@@ -61,15 +61,15 @@ def test_prior_lets_anyone_at_the_kerb_step_off() -> None:
     far_from_kerb = {"dx": 30.0, "dy": CFG.road_right - 3.0, "w": 1}
     obs = make_obs(10.0, 20.0, [kerb_ped(30.0), walking_away, far_from_kerb])
     _, hyp = hypotheses(obs)
-    np.testing.assert_allclose(hyp.weights[0, :3, -1], [CFG.step_off_prior, 0.0, 0.0])
-    np.testing.assert_allclose(hyp.weights[0, :3].sum(-1), 1.0)
+    np.testing.assert_allclose(hyp.weights[0, 0, :3, -1], [CFG.step_off_prior, 0.0, 0.0])
+    np.testing.assert_allclose(hyp.weights[0, 0, :3].sum(-1), 1.0)
     # The step-off hypothesis walks straight across at the assumed pace; the path stays (constant velocity).
     walk = hyp.points[0, 0, 0, -1]
     assert walk[-1, 1] - walk[0, 1] == pytest.approx(CFG.assumed_walking_speed * 4.8)
     np.testing.assert_allclose(hyp.points[0, 0, 0, 0, :, 1], CFG.road_right - 0.3, atol=1e-6)
     # At a signalised crossing showing the car green, people wait for their own signal.
     _, hyp = hypotheses(make_obs(10.0, 20.0, [kerb_ped(30.0)], zebra=False, car_green=True))
-    assert hyp.weights[0, 0, -1] == pytest.approx(CFG.signal_step_off_prior)
+    assert hyp.weights[0, 0, 0, -1] == pytest.approx(CFG.signal_step_off_prior)
 
 
 def test_intent_updates_the_prior_and_a_crossing_forecast_carries_its_own_mass() -> None:
@@ -90,7 +90,7 @@ def test_intent_updates_the_prior_and_a_crossing_forecast_carries_its_own_mass()
     obs = make_obs(10.0, 20.0, [kerb_ped(30.0)])
     obs.update({PREDICTED_SAMPLES_KEY: samples, SAMPLE_WEIGHTS_KEY: weights})
     _, hyp = hypotheses(obs, dataclasses.replace(CFG, step_off_prior=0.8))
-    np.testing.assert_allclose(hyp.weights[0, 0], [0.5 * 0.7, 0.5 * 0.7, 0.3])
+    np.testing.assert_allclose(hyp.weights[0, 0, 0], [0.5 * 0.7, 0.5 * 0.7, 0.3])
 
 
 # ------------------------------------------------------------------------------------------------ scorer
@@ -117,15 +117,23 @@ def test_faster_proposals_risk_someone_who_steps_off_and_the_choice_keeps_the_ch
     assert choose(scores, np.full(1, -1), CFG)[0] == full
 
 
-def test_a_pedestrian_walking_into_the_side_of_the_car_is_not_its_collision() -> None:
-    obs = make_obs(5.0, 60.0, [{"dx": 0.0, "dy": -2.0, "vy": 1.4}], zebra=False)
-    view, hyp = hypotheses(obs)
-    scores = score_proposals(view.speed, np.full(1, np.inf), view.present, make_proposals(CFG), hyp, CFG)
+def test_someone_who_may_step_off_does_not_walk_into_the_side_of_the_car_but_a_forecast_path_does() -> None:
+    props = make_proposals(CFG)
+    beside = make_obs(5.0, 60.0, [kerb_ped(0.0)], zebra=False)
+    view, hyp = hypotheses(beside, dataclasses.replace(CFG, step_off_prior=1.0, signal_step_off_prior=1.0))
+    scores = score_proposals(view.speed, np.full(1, np.inf), view.present, props, hyp, CFG)
     assert (scores.collision == 0.0).all()
-    # The same walk 12 m ahead of a car at 13.9 m/s is.
-    obs = make_obs(13.9, 60.0, [{"dx": 12.0, "dy": -2.0, "vy": 1.4}], zebra=False)
-    view, hyp = hypotheses(obs)
-    scores = score_proposals(view.speed, np.full(1, np.inf), view.present, make_proposals(CFG), hyp, CFG)
+    # Forecast to walk on into the car's path (constant velocity), the same person is a collision for the
+    # proposals that are still there when they arrive, and the planner's choice is one that is not.
+    walking = make_obs(5.0, 60.0, [{"dx": 0.0, "dy": -3.0, "vy": 1.4}], zebra=False)
+    view, hyp = hypotheses(walking)
+    scores = score_proposals(view.speed, np.full(1, np.inf), view.present, props, hyp, CFG)
+    assert scores.collision[0, -1] >= 0.9  # the emergency stop waits for them right in their way
+    assert scores.collision[0, choose(scores, np.full(1, -1), CFG)[0]] == 0.0
+    # A step-off 12 m ahead of a car at 13.9 m/s cannot be avoided by holding the limit.
+    ahead = make_obs(13.9, 60.0, [kerb_ped(12.0)], zebra=False)
+    view, hyp = hypotheses(ahead, dataclasses.replace(CFG, step_off_prior=1.0, signal_step_off_prior=1.0))
+    scores = score_proposals(view.speed, np.full(1, np.inf), view.present, props, hyp, CFG)
     assert scores.collision[0, -2] == 1.0
 
 
@@ -184,3 +192,17 @@ def test_behind_someone_walking_away_along_the_lane_the_planner_follows_rather_t
     best = choose(scores, np.full(1, -1), CFG)[0]
     assert props.target[best] > 0.0  # it follows at their pace; the closing speed, not its own, sets TTC
     assert scores.first[0, best] >= -CFG.comfortable_deceleration
+
+
+def test_with_plan_conditioned_forecasts_each_plan_keeps_its_own_step_off_mass() -> None:
+    """Under a plan that keeps someone on the kerb (waiting for the car), they may still step off."""
+    obs = make_obs(10.0, 80.0, [kerb_ped(30.0)])
+    plans = np.zeros((2, 16, 12, 2), dtype=np.float32)
+    plans[:, 0, :, 0] = 30.0
+    plans[0, 0, :, 1] = CFG.road_right - 0.3 + 1.4 * 0.4 * np.arange(1, 13)  # go: they cross
+    plans[1, 0, :, 1] = CFG.road_right - 0.3  # slow: they wait
+    obs.update({"plan_paths": plans, "plan_accelerations": np.array([1.5, -2.5], dtype=np.float32)})
+    _, hyp = hypotheses(obs)
+    assert hyp.points.shape[1] == 2
+    np.testing.assert_allclose(hyp.weights[0, :, 0, -1], [0.0, CFG.step_off_prior])
+    assert list(hyp.reactive) == [False, True]
