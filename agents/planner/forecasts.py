@@ -50,6 +50,8 @@ class Hypotheses(NamedTuple):
     absent slots)."""
     plan_accelerations: np.ndarray | None
     """(C,) the ego acceleration (m/s²) each plan's forecast assumes; None: one forecast for any plan."""
+    crossing: np.ndarray
+    """(B, C, K) probability that each plan's forecast puts the pedestrian on the road within the horizon."""
     reactive: np.ndarray
     """(H,) True for the step-off hypothesis: a pedestrian who reacts to the car, and so does not walk into
     the side of one passing in front of them (a forecast path is taken as it is)."""
@@ -138,4 +140,6 @@ def build_hypotheses(
     points = np.concatenate([points, np.broadcast_to(walk, (b, c, k, 1, t + 1, 2))], axis=3)
     weights = np.concatenate([weights[:, None] * (1.0 - q)[..., None], q[..., None]], axis=-1)
     reactive = np.append(np.zeros(s, dtype=bool), True)
-    return Hypotheses(points=points, weights=weights, plan_accelerations=plan_acc, reactive=reactive)
+    return Hypotheses(
+        points=points, weights=weights, plan_accelerations=plan_acc, crossing=crossing_mass, reactive=reactive
+    )

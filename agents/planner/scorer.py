@@ -135,7 +135,8 @@ def score_proposals(
     p_collision = 1.0 - np.prod(1.0 - p_k, axis=-1)
     horizon = (steps1 - 1) * hyp.interval
     covered = (w * s).sum(axis=-1).min(axis=-1)  # (B, P): the pedestrian who holds the car most
-    progress = np.clip(covered / max(cfg.speed_limit * horizon, 1e-6), 0.0, 1.0)
+    progress = covered / max(cfg.speed_limit * horizon, 1e-6)
+    progress = np.clip(progress - _deferred_wait(hyp, plan, keep, covered, cfg) / horizon, 0.0, 1.0)
     ttc_term = np.clip(least_ttc / sc.ttc_anchor, 0.0, 1.0)
     ttc = 1.0 - (w * (1.0 - ttc_term)).sum(axis=-1).max(axis=-1)
     span = sc.emergency_deceleration - sc.comfortable_deceleration
@@ -242,6 +243,36 @@ def _rollout(
                     least_ttc[b, p, k, h] = ttc_min
                     hardest[b, p, k, h] = worst
                     covered[b, p, k, h] = s
+
+
+def _deferred_wait(
+    hyp: Hypotheses, plan: np.ndarray, keep: np.ndarray, covered: np.ndarray, cfg: PlannerConfig
+) -> np.ndarray:
+    """(B, P) seconds the car will still wait, after the horizon, for someone a proposal only defers.
+
+    With plan-conditioned forecasts a pedestrian who waits for the car (a Euro NCAP dummy steps off when
+    the car's time to arrive falls to a set value) crosses under a fast plan and stays on the kerb under a
+    slow one: the slow plan's forecast is free of them, yet the crossing is still ahead of the car. A
+    proposal whose plan keeps on the kerb, ahead of the car, someone whom another plan has crossing is
+    charged the time they need to walk across its corridor at `assumed_walking_speed` (at most the
+    horizon) less the time the car needs, at the limit, to drive from where the proposal leaves it
+    (`covered`, (B, P)) to them: without it a car that re-plans every step keeps slowing and creeps up
+    to a person who keeps waiting for it.
+    """
+    b, p = plan.shape
+    if hyp.plan_accelerations is None or hyp.crossing.shape[1] < 2:
+        return np.zeros((b, p))
+    crossing = hyp.crossing[:, :, keep]  # (B, C, K)
+    mine = crossing[np.arange(b)[:, None], plan]  # (B, P, K)
+    elsewhere = crossing.max(axis=1, keepdims=True)  # (B, 1, K)
+    now = hyp.points[:, 0, keep, 0, 0]  # (B, K, 2): where they are
+    ahead = (now[..., 0] > cfg.ego_length / 2)[:, None]
+    deferred = (mine < 0.5) & (elsewhere >= 0.5) & ahead
+    band = cfg.ego_width / 2 + cfg.pedestrian_radius + cfg.lateral_margin
+    horizon = (hyp.points.shape[-2] - 1) * hyp.interval
+    walk = np.minimum((np.abs(now[..., 1]) + band) / cfg.assumed_walking_speed, horizon)[:, None]
+    drive = np.maximum(now[..., 0][:, None] - cfg.ego_length / 2 - covered[..., None], 0.0) / cfg.speed_limit
+    return np.where(deferred, np.maximum(walk - drive, 0.0), 0.0).max(axis=-1, initial=0.0)
 
 
 def choose(scores: Scores, current: np.ndarray, cfg: PlannerConfig) -> np.ndarray:

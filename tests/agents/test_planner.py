@@ -12,7 +12,7 @@ from agents.config import PlannerConfig
 from agents.planner import SamplingPlanner
 from agents.planner.forecasts import build_hypotheses, step_off_probability
 from agents.planner.proposals import command, make_proposals
-from agents.planner.scorer import choose, score_proposals
+from agents.planner.scorer import choose, plan_index, score_proposals
 from agents.view import parse_observation
 from agents.yielding import YieldingPolicy
 from crossing_env.observation import CROSSING_INTENT_KEY, PREDICTED_SAMPLES_KEY, SAMPLE_WEIGHTS_KEY
@@ -206,3 +206,22 @@ def test_with_plan_conditioned_forecasts_each_plan_keeps_its_own_step_off_mass()
     assert hyp.points.shape[1] == 2
     np.testing.assert_allclose(hyp.weights[0, :, 0, -1], [0.0, CFG.step_off_prior])
     assert list(hyp.reactive) == [False, True]
+
+
+def test_a_proposal_that_only_defers_a_crossing_is_charged_the_wait_still_ahead() -> None:
+    obs = make_obs(10.0, 80.0, [kerb_ped(30.0)], zebra=False)
+    plans = np.zeros((2, 16, 12, 2), dtype=np.float32)
+    plans[:, 0, :, 0] = 30.0
+    plans[0, 0, :, 1] = CFG.road_right - 0.3 + 1.4 * 0.4 * np.arange(1, 13)  # go: they cross
+    plans[1, 0, :, 1] = CFG.road_right - 0.3  # slow: they wait for the car
+    obs.update({"plan_paths": plans, "plan_accelerations": np.array([1.5, -2.5], dtype=np.float32)})
+    view, hyp = hypotheses(obs)
+    props = make_proposals(CFG)
+    charged = score_proposals(view.speed, np.full(1, np.inf), view.present, props, hyp, CFG)
+    free = score_proposals(
+        view.speed, np.full(1, np.inf), view.present, props, hyp._replace(crossing=hyp.crossing * 0), CFG
+    )
+    slow = plan_index(view.speed, props, hyp, CFG)[0] == 1
+    assert slow.any() and (~slow).any()
+    assert (charged.score[0, slow] < free.score[0, slow]).all()  # the crossing is still ahead of them
+    np.testing.assert_array_equal(charged.score[0, ~slow], free.score[0, ~slow])
