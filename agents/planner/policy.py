@@ -42,7 +42,7 @@ class SamplingPlanner(PredictiveYielding):
         """Forget the yielding state and the proposal being followed."""
         super().reset(seed)
         self._proposal = np.zeros(0, dtype=np.int64)
-        self._last_to_stop = np.zeros(0)
+        self._proposal_to_stop = np.zeros(0)
         self.proposal_history: list[np.ndarray] = []
         """Chosen proposal index (B,) per call since `reset` (for tests and diagnostics)."""
 
@@ -56,9 +56,11 @@ class SamplingPlanner(PredictiveYielding):
         legal, _conflict = self._targets(view)  # the legal duty (and the rules' timers and memory)
         if self._proposal.shape != (b,):
             self._proposal = np.full(b, -1, dtype=np.int64)
-            self._last_to_stop = np.full(b, np.inf)
-        fresh = view.to_stop > self._last_to_stop + 0.5  # a vector env restarted this element's episode
-        self._last_to_stop = view.to_stop.copy()
+            self._proposal_to_stop = np.full(b, np.inf)
+        # A vector env restarted this element's episode. Its own record: the rules' `_last_to_stop` has
+        # already been updated by `_targets` this step.
+        fresh = view.to_stop > self._proposal_to_stop + 0.5
+        self._proposal_to_stop = view.to_stop.copy()
         self._proposal[fresh] = -1
         hyp = build_hypotheses(view, self._obs, cfg, self._kerb_gap(view), self._towards_road(view))
         scores = score_proposals(view.speed, legal, view.present, self.proposals, hyp, cfg)

@@ -15,7 +15,12 @@ from agents.planner.proposals import command, make_proposals
 from agents.planner.scorer import choose, plan_index, score_proposals
 from agents.view import parse_observation
 from agents.yielding import YieldingPolicy
-from crossing_env.observation import CROSSING_INTENT_KEY, PREDICTED_SAMPLES_KEY, SAMPLE_WEIGHTS_KEY
+from crossing_env.observation import (
+    CROSSING_INTENT_KEY,
+    PEDESTRIAN_TRACKS_KEY,
+    PREDICTED_SAMPLES_KEY,
+    SAMPLE_WEIGHTS_KEY,
+)
 from tests.agents.test_policies import accel, crossing_centre, make_obs, stack
 
 CFG = PlannerConfig()
@@ -225,3 +230,19 @@ def test_a_proposal_that_only_defers_a_crossing_is_charged_the_wait_still_ahead(
     assert slow.any() and (~slow).any()
     assert (charged.score[0, slow] < free.score[0, slow]).all()  # the crossing is still ahead of them
     np.testing.assert_array_equal(charged.score[0, ~slow], free.score[0, ~slow])
+
+
+def test_a_restarted_episode_in_a_batch_slot_forgets_the_proposal_held() -> None:
+    """A vector env restarts an element without `reset`: the held proposal must go with its episode."""
+    cfg = dataclasses.replace(CFG, switch_margin=1.0)  # hysteresis that keeps any feasible proposal
+    red = make_obs(0.0, 1.0, zebra=False, car_green=False)  # standing at a red light: the stop is held
+    free = make_obs(8.0, 60.0)  # the next episode in the same slot, nobody about
+    for obs in (red, free):
+        obs[PEDESTRIAN_TRACKS_KEY] = np.zeros(16, dtype=np.float32)  # with tracks the rules keep memory
+    planner = SamplingPlanner(cfg)
+    planner(red)
+    assert planner.proposal_history[-1][0] == 0
+    restarted = planner(free)
+    fresh = SamplingPlanner(cfg)
+    np.testing.assert_array_equal(restarted, fresh(free))
+    assert planner.proposal_history[-1][0] == fresh.proposal_history[-1][0] != 0
