@@ -87,13 +87,13 @@ def score_proposals(
     keep = relevant.any(axis=0)
     keep[0] |= not keep.any()  # one (empty) slot keeps the shapes: the proposals alone
     points = np.ascontiguousarray(hyp.points[:, :, keep], dtype=np.float64)
-    weights = hyp.weights[np.arange(b)[:, None], plan][:, :, keep]  # (B, P, K, H): each under its plan
+    w = hyp.weights[np.arange(b)[:, None], plan][:, :, keep]  # (B, P, K, H): each under its plan
     k = int(keep.sum())
     shape = (b, p, k, h)
     collision = np.zeros(shape, dtype=np.bool_)
     least_ttc = np.full(shape, np.inf)
     hardest = np.zeros(shape)
-    covered = np.zeros(shape)
+    distance = np.zeros(shape)
     first = np.zeros(shape)
     params = np.array(
         [
@@ -124,17 +124,15 @@ def score_proposals(
         collision,
         least_ttc,
         hardest,
-        covered,
+        distance,
         first,
     )
     first = first.min(axis=(2, 3))  # every hypothesis starts where the pedestrian is now
-    s = covered
-    w = weights
     sc = cfg.score
     p_k = (w * collision).sum(axis=-1)  # (B, P, K)
     p_collision = 1.0 - np.prod(1.0 - p_k, axis=-1)
     horizon = (steps1 - 1) * hyp.interval
-    covered = (w * s).sum(axis=-1).min(axis=-1)  # (B, P): the pedestrian who holds the car most
+    covered = (w * distance).sum(axis=-1).min(axis=-1)  # (B, P): the pedestrian who holds the car most
     progress = covered / max(cfg.speed_limit * horizon, 1e-6)
     progress = np.clip(progress - _deferred_wait(hyp, plan, keep, covered, cfg) / horizon, 0.0, 1.0)
     ttc_term = np.clip(least_ttc / sc.ttc_anchor, 0.0, 1.0)
